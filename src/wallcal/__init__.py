@@ -1,0 +1,22 @@
+"""wallcal: calibrate the thermal model of a real building wall against in-situ monitoring data."""
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("wallcal")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    __version__ = "0.0.0+unknown"
+
+from .errors import DataError, EngineError, StudyError, WallcalError  # noqa: E402
+from .wall import Layer, Probe, Wall  # noqa: E402
+
+__all__ = [
+    "DataError",
+    "EngineError",
+    "Layer",
+    "Probe",
+    "StudyError",
+    "Wall",
+    "WallcalError",
+    "__version__",
+]

@@ -1,0 +1,1 @@
+"""CLI commands, one module each; shared formatting helpers in :mod:`._format`."""

@@ -1,0 +1,346 @@
+"""Monitoring data: reading, column mapping, units, gaps, spikes and the summary table.
+
+Everything read here is converted once to wallcal's conventions: temperatures
+in degC, heat flux densities in W/m2 positive towards the interior, timestamps
+naive in local standard time.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import DataError, closest, require
+from .study import Study
+
+KELVIN = 273.15
+
+
+@dataclass
+class Measurements:
+    """Monitoring data mapped onto a study.
+
+    Attributes
+    ----------
+    frame : pandas.DataFrame
+        Index: timestamps (naive, local standard time). Columns: ``exterior`` and
+        ``interior`` (boundary series, degC or W/m2) and one column per sensor
+        name, in wallcal's units and sign convention. NaN = missing.
+    spikes : pandas.DataFrame
+        Single-sample spikes found: columns ``signal, timestamp, value, deviation``.
+        Spikes are set to NaN in ``frame`` when the study removes them.
+    bridged_gaps : pandas.DataFrame
+        Gaps in boundary series bridged by linear interpolation: ``signal, start, end, seconds``.
+    source : Path
+    sha256 : str
+        Hash of the data file(s).
+    """
+
+    frame: pd.DataFrame
+    spikes: pd.DataFrame
+    bridged_gaps: pd.DataFrame
+    source: Path
+    sha256: str
+    notes: list[str] = field(default_factory=list)
+
+
+# ---------------------------------------------------------------------------- reading
+def _sniff_separator(path: Path) -> str:
+    with open(path, "rb") as fh:
+        head = fh.readline().decode("utf-8", errors="replace")
+    counts = {sep: head.count(sep) for sep in (",", "\t", ";")}
+    best = max(counts, key=counts.get)
+    return best if counts[best] > 0 else ","
+
+
+def read_table(path: Path, separator: str | None = None) -> pd.DataFrame:
+    """Read a CSV (any of , ; tab) or Parquet file into a DataFrame of raw columns.
+
+    Raises
+    ------
+    DataError
+        Missing, empty or unreadable file, with the file name.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"data.file: file not found: {path}")
+    if path.stat().st_size == 0:
+        raise DataError(f"{path}: the file is empty")
+    if path.suffix.lower() in (".parquet", ".pq"):
+        require("pyarrow", "parquet")
+        try:
+            return pd.read_parquet(path)
+        except Exception as exc:  # pyarrow raises many types
+            raise DataError(f"{path}: cannot read as Parquet: {exc}") from exc
+    sep = separator or _sniff_separator(path)
+    try:
+        frame = pd.read_csv(path, sep=sep, encoding="utf-8", skipinitialspace=True)
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not valid UTF-8 text (byte {exc.start}); save the file as UTF-8") from exc
+    except pd.errors.EmptyDataError as exc:
+        raise DataError(f"{path}: the file is empty") from exc
+    except pd.errors.ParserError as exc:
+        raise DataError(f"{path}: cannot parse as CSV: {str(exc).splitlines()[0]}") from exc
+    if frame.empty:
+        raise DataError(f"{path}: the file has a header but no data rows")
+    frame.columns = [str(c).strip() for c in frame.columns]
+    return frame
+
+
+def _column(frame: pd.DataFrame, col: str, key: str, path: Path) -> pd.Series:
+    if col not in frame.columns:
+        raise DataError(f"{path}: column {col!r} ({key}) not found; {closest(col, list(frame.columns))}")
+    return frame[col]
+
+
+def _numeric(series: pd.Series, col: str, path: Path) -> np.ndarray:
+    if pd.api.types.is_bool_dtype(series.dtype):
+        raise DataError(f"{path}: column {col!r} holds true/false values, not numbers")
+    values = pd.to_numeric(series, errors="coerce")
+    bad = values.isna() & series.notna() & (series.astype(str).str.strip() != "")
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raise DataError(
+            f"{path}: column {col!r} has a non-numeric value {series.iloc[i]!r} at data row {i + 1} "
+            f"(line {i + 2}); fix or blank it"
+        )
+    out = values.to_numpy(dtype=float)
+    if np.isinf(out).any():
+        i = int(np.flatnonzero(np.isinf(out))[0])
+        raise DataError(f"{path}: column {col!r} has an infinite value at data row {i + 1} (line {i + 2})")
+    return out
+
+
+def _timestamps(frame: pd.DataFrame, study: Study, path: Path) -> pd.DatetimeIndex:
+    spec = study.data
+    col = _column(frame, spec.time_column, "data.time_column", path)
+    if spec.time_format == "elapsed_seconds":
+        secs = _numeric(col, spec.time_column, path)
+        if np.isnan(secs).any():
+            i = int(np.flatnonzero(np.isnan(secs))[0])
+            raise DataError(f"{path}: column {spec.time_column!r} is empty at data row {i + 1} (line {i + 2})")
+        idx = pd.DatetimeIndex(pd.Timestamp(spec.start) + pd.to_timedelta(secs, unit="s"))
+    else:
+        text = col.astype(str).str.strip()
+        try:
+            parsed = pd.to_datetime(text, format="ISO8601", utc=False)
+        except (ValueError, TypeError) as exc:
+            # find the first bad row for the message
+            for i, v in enumerate(text):
+                try:
+                    _dt.datetime.fromisoformat(v)
+                except ValueError:
+                    raise DataError(
+                        f"{path}: column {spec.time_column!r} has a value that is not an ISO 8601 date-time: "
+                        f"{v!r} at data row {i + 1} (line {i + 2})"
+                    ) from exc
+            raise DataError(f"{path}: column {spec.time_column!r}: mixed time-zone offsets or unreadable "
+                            f"date-times ({exc}); give every timestamp the same offset or none") from exc
+        if isinstance(parsed, pd.Series):
+            if parsed.dtype == object:
+                raise DataError(f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
+                                "winter time) or naive and aware timestamps; wallcal needs one local standard "
+                                "time: convert the column or give data.utc_offset")
+            idx = pd.DatetimeIndex(parsed)
+        else:
+            idx = pd.DatetimeIndex(parsed)
+        if idx.tz is not None:
+            if spec.utc_offset is None:
+                raise DataError(f"{path}: column {spec.time_column!r} carries a time-zone offset; give "
+                                "data.utc_offset (the offset of local standard time, e.g. \"+01:00\") so that "
+                                "wallcal can convert to local standard time")
+            offset = _dt.datetime.strptime(spec.utc_offset.replace("Z", "+00:00"), "%z").tzinfo
+            idx = idx.tz_convert(offset).tz_localize(None)
+    if idx.isna().any():
+        i = int(np.flatnonzero(idx.isna())[0])
+        raise DataError(f"{path}: column {spec.time_column!r} is empty at data row {i + 1} (line {i + 2})")
+    d = np.diff(idx.asi8)
+    if (d == 0).any():
+        i = int(np.flatnonzero(d == 0)[0])
+        raise DataError(f"{path}: duplicate timestamp {idx[i]} at data rows {i + 1} and {i + 2}; "
+                        "remove the duplicate rows")
+    if (d < 0).any():
+        i = int(np.flatnonzero(d < 0)[0])
+        raise DataError(f"{path}: timestamps are not increasing: {idx[i]} (data row {i + 1}) is followed by "
+                        f"{idx[i + 1]} (data row {i + 2}); sort the file by time")
+    return idx
+
+
+def _convert(values: np.ndarray, unit: str, positive: str) -> np.ndarray:
+    out = values.copy()
+    if unit == "K":
+        out = out - KELVIN
+    if positive == "towards_exterior":
+        out = -out
+    return out
+
+
+# ---------------------------------------------------------------------------- spikes and gaps
+def detect_spikes(values: np.ndarray, sigma: float = 8.0) -> np.ndarray:
+    """Single-sample spikes: a value far from both neighbours, which agree with each other.
+
+    Robust rule: with ``r_k = x_k - (x_{k-1} + x_{k+1}) / 2`` and its robust
+    scale ``s = 1.4826 MAD(r)``, sample k is a spike when
+    ``|r_k| > max(sigma s, 0.01 range(x))`` and ``|x_{k+1} - x_{k-1}| < |r_k| / 2``
+    (the signal returns at once). Missing values are skipped (neighbours are the
+    nearest valid samples).
+
+    Parameters
+    ----------
+    values : ndarray
+    sigma : float
+        Threshold in robust standard deviations.
+
+    Returns
+    -------
+    ndarray of bool
+    """
+    x = np.asarray(values, dtype=float)
+    mask = np.zeros(len(x), dtype=bool)
+    valid = np.flatnonzero(np.isfinite(x))
+    if len(valid) < 5:
+        return mask
+    v = x[valid]
+    r = v[1:-1] - 0.5 * (v[:-2] + v[2:])
+    mad = np.median(np.abs(r - np.median(r)))
+    s = 1.4826 * mad
+    floor = 0.01 * (np.max(v) - np.min(v))
+    thr = max(sigma * s, floor, 1e-12)
+    jump_back = np.abs(v[2:] - v[:-2])
+    hit = (np.abs(r) > thr) & (jump_back < 0.5 * np.abs(r))
+    mask[valid[1:-1][hit]] = True
+    return mask
+
+
+def find_gaps(index: pd.DatetimeIndex, values: np.ndarray, start, end) -> list[tuple]:
+    """Gaps between consecutive valid samples inside [start, end].
+
+    Returns a list of ``(gap_start, gap_end, seconds)`` for every spacing larger
+    than 1.5 times the median sampling interval.
+    """
+    ok = np.isfinite(values)
+    t = index[ok]
+    if len(t) < 2:
+        return []
+    secs = np.diff(t.asi8) / 1e9
+    nominal = float(np.median(secs))
+    out = []
+    for i in np.flatnonzero(secs > 1.5 * nominal):
+        a, b = t[i], t[i + 1]
+        if b < start or a > end:
+            continue
+        out.append((a, b, float(secs[i])))
+    return out
+
+
+# ---------------------------------------------------------------------------- main entry
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def load_measurements(study: Study) -> Measurements:
+    """Read the study's data file and map it onto the study.
+
+    Raises
+    ------
+    DataError
+        Naming the file and column: missing file or column, non-numeric values,
+        duplicate or non-increasing timestamps, a period outside the data, a gap in a
+        boundary series longer than ``data.max_gap``.
+    """
+    spec = study.data
+    path = spec.file
+    raw = read_table(path, spec.separator)
+    index = _timestamps(raw, study, path)
+    cols: dict[str, np.ndarray] = {}
+    for face, b in (("exterior", study.exterior), ("interior", study.interior)):
+        vals = _numeric(_column(raw, b.column, f"boundary.{face}.column", path), b.column, path)
+        cols[face] = _convert(vals, b.unit, b.positive)
+    for i, s in enumerate(study.sensors):
+        vals = _numeric(_column(raw, s.column, f"sensors[{i}].column", path), s.column, path)
+        cols[s.name] = _convert(vals, s.unit, s.positive)
+    frame = pd.DataFrame(cols, index=index)
+    frame.index.name = "timestamp"
+
+    # period inside the data
+    p = study.period
+    warm = pd.Timestamp(p.warmup_start) if p.warmup_start else index[0]
+    start, end = pd.Timestamp(p.start), pd.Timestamp(p.end)
+    first, last = index[0], index[-1]
+    if warm < first or end > last or start < first:
+        raise DataError(
+            f"{path}: the period {warm} .. {end} (period.warmup_start/start/end) is outside the data, which "
+            f"run from {first} to {last}"
+        )
+
+    # spikes
+    spike_rows = []
+    for name in frame.columns:
+        s = frame[name].to_numpy()
+        hit = detect_spikes(s, spec.spike_sigma)
+        if hit.any():
+            med = pd.Series(s).rolling(3, center=True, min_periods=1).median().to_numpy()
+            for k in np.flatnonzero(hit):
+                spike_rows.append((name, index[k], float(s[k]), float(s[k] - med[k])))
+            if spec.remove_spikes:
+                s = s.copy()
+                s[hit] = np.nan
+                frame[name] = s
+    spikes = pd.DataFrame(spike_rows, columns=["signal", "timestamp", "value", "deviation"])
+
+    # boundary gaps
+    gap_rows = []
+    for face, b in (("exterior", study.exterior), ("interior", study.interior)):
+        v = frame[face].to_numpy()
+        inside = (index >= warm) & (index <= end)
+        ok = np.isfinite(v) & inside
+        if not ok.any():
+            raise DataError(f"{path}: column {b.column!r} (boundary.{face}) has no value in the period")
+        t_ok = index[ok]
+        if t_ok[0] > warm or t_ok[-1] < end:
+            raise DataError(
+                f"{path}: column {b.column!r} (boundary.{face}) has no value at the start or end of the period "
+                f"({t_ok[0]} .. {t_ok[-1]} inside {warm} .. {end}); move the period or fill the data"
+            )
+        for a, c, secs in find_gaps(index, np.where(inside, v, np.nan), warm, end):
+            if secs > spec.max_gap:
+                raise DataError(
+                    f"{path}: column {b.column!r} (boundary.{face}) has a gap of {secs / 3600:.2f} h from {a} to {c}, "
+                    f"longer than data.max_gap = {spec.max_gap:g} s; raise max_gap or move the period"
+                )
+            gap_rows.append((b.column, a, c, secs))
+    gaps = pd.DataFrame(gap_rows, columns=["signal", "start", "end", "seconds"])
+    return Measurements(frame=frame, spikes=spikes, bridged_gaps=gaps, source=path, sha256=file_sha256(path))
+
+
+def summarize(frame: pd.DataFrame, start, end) -> pd.DataFrame:
+    """Summary of measured signals over [start, end] (the paper's Table III).
+
+    Returns
+    -------
+    DataFrame
+        One row per signal: ``n, max, min, range, mean, effective`` (effective =
+        root mean square value, the normalisation of CV(RMSE) for heat fluxes).
+    """
+    sel = frame.loc[(frame.index >= pd.Timestamp(start)) & (frame.index <= pd.Timestamp(end))]
+    rows = {}
+    for col in sel.columns:
+        v = sel[col].to_numpy(dtype=float)
+        v = v[np.isfinite(v)]
+        if len(v) == 0:
+            rows[col] = dict(n=0, max=np.nan, min=np.nan, range=np.nan, mean=np.nan, effective=np.nan)
+            continue
+        rows[col] = dict(n=len(v), max=v.max(), min=v.min(), range=v.max() - v.min(), mean=v.mean(),
+                         effective=float(np.sqrt(np.mean(v**2))))
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.index.name = "signal"
+    return out

@@ -1,0 +1,296 @@
+"""The finite-volume grid of a wall: nodes, links, and how properties map onto them.
+
+Discretisation
+--------------
+Vertex-centred finite volumes with a node on every face and every layer
+interface. A massive layer of thickness ``d`` is split into ``n`` equal
+intervals ``dx = d / n``; every interval links its two end nodes with a
+conductance ``lambda / dx`` [W/(m2K)] and gives each end node half its heat
+capacity ``rho c dx / 2`` [J/(m2K)]. A no-mass layer is one link of
+conductance ``1 / R``. A contact resistance adds a second node at the same
+depth, linked by ``1 / R_contact``.
+
+Node rules (``n`` per massive layer, with the layer's diffusivity ``alpha``,
+the time step ``dt`` and the grid constant ``C = dx^2 / (alpha dt)``):
+
+- ``"wallcal"`` (default): ``n = max(1, ceil(d / sqrt(C alpha dt)))``, i.e. the
+  coarsest uniform grid whose spacing is *at most* the one C asks for
+  (every layer at least as fine as requested).
+- ``"energyplus"``: ``n = max(1, int(d / sqrt(C alpha dt)))``, EnergyPlus CondFD's
+  rule (spacing *at least* the one asked for), so the two codes can be compared
+  node for node.
+
+The grid is built once from a reference wall; candidate walls of a batch (in
+calibration) reuse it with their own properties, so that the simulated
+outputs are smooth functions of the properties.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import StudyError
+from .wall import Wall
+
+NODE_RULES = ("wallcal", "energyplus")
+
+# Layer-conductivity models in the kernel
+LAMBDA_CONSTANT = 0
+LAMBDA_EXPONENTIAL = 1
+LAMBDA_TABLE = 2
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Node layout of a wall.
+
+    Attributes
+    ----------
+    x : ndarray, shape (n_nodes,)
+        Node depths from the exterior face [m] (two nodes share a depth at a contact resistance).
+    nodes_per_layer : tuple of int
+        Intervals per layer (0 for a no-mass layer).
+    link_layer : ndarray of int, shape (n_links,)
+        Layer index of each link; -1 for a contact-resistance link.
+    link_contact_of : ndarray of int, shape (n_links,)
+        For a contact link, the index of the layer whose ``contact_resistance`` it carries; else -1.
+    link_intervals : ndarray of float, shape (n_links,)
+        For a massive-layer link, the number of intervals of its layer (conductance = lambda n / d).
+    layer_first_node : ndarray of int, shape (n_layers,)
+        Node index of each layer's exterior face.
+    layer_last_node : ndarray of int, shape (n_layers,)
+        Node index of each layer's interior face.
+    """
+
+    x: np.ndarray
+    nodes_per_layer: tuple[int, ...]
+    link_layer: np.ndarray
+    link_contact_of: np.ndarray
+    link_intervals: np.ndarray
+    layer_first_node: np.ndarray
+    layer_last_node: np.ndarray
+    time_step: float
+    grid_constant: float
+    rule: str
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.x)
+
+    @property
+    def n_links(self) -> int:
+        return len(self.link_layer)
+
+
+def intervals_for_layer(thickness: float, diffusivity: float, time_step: float, grid_constant: float,
+                        rule: str = "wallcal") -> int:
+    """Number of intervals in a massive layer under a node rule (see module docstring).
+
+    Parameters
+    ----------
+    thickness : float
+        Layer thickness [m].
+    diffusivity : float
+        Thermal diffusivity [m2/s].
+    time_step : float
+        [s].
+    grid_constant : float
+        C = dx^2 / (alpha dt) [-].
+    rule : {"wallcal", "energyplus"}
+    """
+    dx_target = math.sqrt(grid_constant * diffusivity * time_step)
+    ratio = thickness / dx_target
+    if rule == "energyplus":
+        n = int(ratio)
+    elif rule == "wallcal":
+        # tolerate round-off so that an exact multiple is not bumped up one interval
+        n = math.ceil(ratio - 1e-9)
+    else:
+        raise StudyError([f"simulation.node_rule: must be one of {NODE_RULES}, got {rule!r}"])
+    return max(1, n)
+
+
+def build_grid(wall: Wall, time_step: float, grid_constant: float, rule: str = "wallcal",
+               contact_layers: set[int] | frozenset[int] = frozenset()) -> Grid:
+    """Build the node layout of ``wall``.
+
+    Parameters
+    ----------
+    wall : Wall
+    time_step : float
+        [s].
+    grid_constant : float
+        C [-].
+    rule : {"wallcal", "energyplus"}
+    contact_layers : set of int
+        Layer indices that get a contact link even when their contact resistance is 0
+        (because a calibration may change it).
+    """
+    xs = [0.0]
+    link_layer: list[int] = []
+    link_contact: list[int] = []
+    link_n: list[float] = []
+    first = []
+    last = []
+    npl = []
+    depth = 0.0
+    for i, layer in enumerate(wall.layers):
+        first.append(len(xs) - 1)
+        if layer.is_massless:
+            depth += layer.thickness
+            xs.append(depth)
+            link_layer.append(i)
+            link_contact.append(-1)
+            link_n.append(0.0)
+            npl.append(0)
+        else:
+            n = intervals_for_layer(layer.thickness, layer.diffusivity, time_step, grid_constant, rule)
+            dx = layer.thickness / n
+            for k in range(1, n + 1):
+                xs.append(depth + k * dx if k < n else depth + layer.thickness)
+                link_layer.append(i)
+                link_contact.append(-1)
+                link_n.append(float(n))
+            depth += layer.thickness
+            npl.append(n)
+        last.append(len(xs) - 1)
+        is_last = i == len(wall.layers) - 1
+        if not is_last and (layer.contact_resistance > 0 or i in contact_layers):
+            xs.append(depth)
+            link_layer.append(-1)
+            link_contact.append(i)
+            link_n.append(0.0)
+    return Grid(
+        x=np.array(xs),
+        nodes_per_layer=tuple(npl),
+        link_layer=np.array(link_layer, dtype=np.int64),
+        link_contact_of=np.array(link_contact, dtype=np.int64),
+        link_intervals=np.array(link_n),
+        layer_first_node=np.array(first, dtype=np.int64),
+        layer_last_node=np.array(last, dtype=np.int64),
+        time_step=float(time_step),
+        grid_constant=float(grid_constant),
+        rule=rule,
+    )
+
+
+# ---------------------------------------------------------------------------- properties on the grid
+@dataclass
+class PropertyArrays:
+    """Layer properties of a batch of candidate walls, shape (n_candidates, n_layers).
+
+    Units: thickness [m], conductivity [W/(m K)] at reference temperature,
+    volumetric_heat_capacity [J/(m3 K)], temperature coefficient [1/K],
+    reference temperature [degC], contact and thermal resistances [m2K/W].
+    """
+
+    thickness: np.ndarray
+    conductivity: np.ndarray
+    volumetric_heat_capacity: np.ndarray
+    temperature_coefficient: np.ndarray
+    reference_temperature: np.ndarray
+    contact_resistance: np.ndarray
+    thermal_resistance: np.ndarray
+
+    @property
+    def n_candidates(self) -> int:
+        return self.conductivity.shape[0]
+
+    @classmethod
+    def from_walls(cls, walls: list[Wall]) -> PropertyArrays:
+        """Stack the layer properties of walls with the same layer structure."""
+
+        def arr(fn):
+            return np.array([[fn(layer) for layer in w.layers] for w in walls], dtype=float)
+
+        return cls(
+            thickness=arr(lambda L: L.thickness),
+            conductivity=arr(lambda L: 0.0 if L.is_massless else (L.conductivity or 0.0)),
+            volumetric_heat_capacity=arr(lambda L: L.volumetric_heat_capacity),
+            temperature_coefficient=arr(lambda L: L.conductivity_temperature_coefficient),
+            reference_temperature=arr(lambda L: L.reference_temperature),
+            contact_resistance=arr(lambda L: L.contact_resistance),
+            thermal_resistance=arr(lambda L: L.thermal_resistance if L.is_massless else 0.0),
+        )
+
+
+#: Smallest contact resistance represented [m2K/W]; a contact link calibrated down to 0 uses this.
+MIN_CONTACT_RESISTANCE = 1e-7
+
+
+def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]:
+    """Node capacities and link conductances for every candidate.
+
+    Returns
+    -------
+    capacity : ndarray, shape (n_candidates, n_nodes)
+        Node heat capacities [J/(m2K)].
+    conductance : ndarray, shape (n_candidates, n_links)
+        Link conductances at the reference temperature [W/(m2K)] (lambda(T) layers
+        are re-evaluated in the kernel).
+    """
+    nc = props.n_candidates
+    cap = np.zeros((nc, grid.n_nodes))
+    g = np.zeros((nc, grid.n_links))
+    for l_idx in range(grid.n_links):
+        li = grid.link_layer[l_idx]
+        if li >= 0:
+            n = grid.link_intervals[l_idx]
+            if n == 0.0:  # no-mass layer
+                g[:, l_idx] = 1.0 / props.thermal_resistance[:, li]
+            else:
+                dx = props.thickness[:, li] / n
+                g[:, l_idx] = props.conductivity[:, li] / dx
+                half = 0.5 * props.volumetric_heat_capacity[:, li] * dx
+                cap[:, l_idx] += half
+                cap[:, l_idx + 1] += half
+        else:
+            ci = grid.link_contact_of[l_idx]
+            g[:, l_idx] = 1.0 / np.maximum(props.contact_resistance[:, ci], MIN_CONTACT_RESISTANCE)
+    return cap, g
+
+
+def probe_weights(grid: Grid, depths: np.ndarray, sides: list[str | None]) -> tuple[np.ndarray, ...]:
+    """Interpolation of probe temperatures between nodes.
+
+    Parameters
+    ----------
+    depths : ndarray, shape (n_candidates, n_probes)
+        Probe depths from the exterior face [m].
+    sides : list of str or None
+        Per probe, at a double node (contact resistance): ``"exterior"``,
+        ``"interior"`` or None (mean of both).
+
+    Returns
+    -------
+    node_a, node_b : ndarray of int, shape (n_candidates, n_probes)
+    weight_b : ndarray, shape (n_candidates, n_probes)
+        T = (1 - w) T[a] + w T[b]: exact on a node, linear between nodes.
+    """
+    x = grid.x
+    nc, npr = depths.shape
+    a = np.zeros((nc, npr), dtype=np.int64)
+    b = np.zeros((nc, npr), dtype=np.int64)
+    w = np.zeros((nc, npr))
+    tol = 1e-12 * max(1.0, x[-1])
+    for p in range(npr):
+        side = sides[p]
+        for c in range(nc):
+            d = min(max(depths[c, p], 0.0), x[-1])
+            hits = np.nonzero(np.abs(x - d) <= tol)[0]
+            if len(hits) >= 1:
+                if len(hits) == 1 or side == "exterior":
+                    a[c, p] = b[c, p] = hits[0]
+                elif side == "interior":
+                    a[c, p] = b[c, p] = hits[-1]
+                else:
+                    a[c, p], b[c, p], w[c, p] = hits[0], hits[-1], 0.5
+                continue
+            j = int(np.searchsorted(x, d, side="right")) - 1
+            j = min(max(j, 0), len(x) - 2)
+            a[c, p], b[c, p] = j, j + 1
+            w[c, p] = (d - x[j]) / (x[j + 1] - x[j])
+    return a, b, w

@@ -1,0 +1,103 @@
+"""Error metrics between measured and simulated series (one place for all of them).
+
+Definitions (y measured, s simulated, n samples, e = s - y):
+
+- ``rmse`` = sqrt(mean(e^2)) -- the study's eq. (1).
+- ``rn_rmse`` = rmse / (max(y) - min(y)) -- range-normalised, eq. (2); a fraction.
+- ``cv_rmse_eff`` = rmse / y_eff with y_eff = sqrt(mean(y^2)) -- eq. (3), the
+  study's CV(RMSE) over the effective value; a fraction.
+- ``mbe`` = sum(y - s) / n and ``nmbe`` = sum(y - s) / ((n - p) mean(y)) with
+  p = 1 -- ASHRAE Guideline 14-2014 (measured minus simulated: positive when the
+  model under-predicts); nmbe a fraction.
+- ``cv_rmse_g14`` = sqrt(sum((y - s)^2) / (n - p)) / mean(y), p = 1 -- ASHRAE
+  Guideline 14-2014 CV(RMSE), a fraction. Both Guideline-14 figures normalise by
+  the mean, which for temperatures depends on the temperature scale (degC here)
+  and for heat fluxes near zero mean is meaningless: read rn_rmse / cv_rmse_eff.
+- ``mae`` = mean(|e|), ``max_abs_error`` = max(|e|).
+- ``accuracy``: the sensor's stated accuracy [unit of the signal]; for a relative
+  accuracy a, a * y_eff. ``within_accuracy`` = rmse <= accuracy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+METRIC_COLUMNS = ("signal", "n", "rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14", "mae",
+                  "max_abs_error", "accuracy", "within_accuracy")
+G14_PARAMETERS = 1
+
+
+def compute(measured, simulated, accuracy: float | None = None,
+            accuracy_relative: float | None = None) -> dict:
+    """All metrics for one signal; NaN pairs are skipped.
+
+    Parameters
+    ----------
+    measured, simulated : array-like
+        Same length. Units of the signal (degC or W/m2).
+    accuracy : float, optional
+        Absolute sensor accuracy [unit of the signal].
+    accuracy_relative : float, optional
+        Relative accuracy [-], applied to the effective value.
+
+    Returns
+    -------
+    dict
+        Keys of :data:`METRIC_COLUMNS` except ``signal``.
+    """
+    y = np.asarray(measured, dtype=float)
+    s = np.asarray(simulated, dtype=float)
+    ok = np.isfinite(y) & np.isfinite(s)
+    y, s = y[ok], s[ok]
+    n = len(y)
+    nan = float("nan")
+    if n == 0:
+        return dict(n=0, rmse=nan, rn_rmse=nan, cv_rmse_eff=nan, mbe=nan, nmbe=nan, cv_rmse_g14=nan, mae=nan,
+                    max_abs_error=nan, accuracy=accuracy if accuracy is not None else nan,
+                    within_accuracy=False)
+    e = s - y
+    rmse = float(np.sqrt(np.mean(e**2)))
+    rng = float(y.max() - y.min())
+    y_eff = float(np.sqrt(np.mean(y**2)))
+    ybar = float(np.mean(y))
+    dof = n - G14_PARAMETERS
+    mbe = float(np.sum(y - s) / n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nmbe = float(np.sum(y - s) / (dof * ybar)) if dof > 0 and ybar != 0 else nan
+        cv_g14 = float(np.sqrt(np.sum(e**2) / dof) / ybar) if dof > 0 and ybar != 0 else nan
+    acc = accuracy if accuracy is not None else (accuracy_relative * y_eff if accuracy_relative else None)
+    return dict(
+        n=n,
+        rmse=rmse,
+        rn_rmse=rmse / rng if rng > 0 else nan,
+        cv_rmse_eff=rmse / y_eff if y_eff > 0 else nan,
+        mbe=mbe,
+        nmbe=nmbe,
+        cv_rmse_g14=cv_g14,
+        mae=float(np.mean(np.abs(e))),
+        max_abs_error=float(np.max(np.abs(e))),
+        accuracy=float(acc) if acc is not None else nan,
+        within_accuracy=bool(acc is not None and rmse <= acc),
+    )
+
+
+def table(measured: pd.DataFrame, simulated: pd.DataFrame, accuracies: dict[str, tuple]) -> pd.DataFrame:
+    """Metrics of every column, one row per signal (columns :data:`METRIC_COLUMNS`).
+
+    ``accuracies`` maps a signal to ``(accuracy, accuracy_relative)``.
+    """
+    rows = []
+    for name in measured.columns:
+        acc, accr = accuracies.get(name, (None, None))
+        rows.append({"signal": name, **compute(measured[name], simulated[name], acc, accr)})
+    return pd.DataFrame(rows, columns=list(METRIC_COLUMNS))
+
+
+def rmse(measured, simulated, axis=-1):
+    """RMSE over ``axis`` skipping NaN in ``measured`` (batch-friendly)."""
+    y = np.asarray(measured, dtype=float)
+    s = np.asarray(simulated, dtype=float)
+    e = s - y
+    ok = np.isfinite(e)
+    return np.sqrt(np.where(ok, e, 0.0).__pow__(2).sum(axis=axis) / np.maximum(ok.sum(axis=axis), 1))

@@ -1,0 +1,250 @@
+"""From a study to simulated-versus-measured series and metrics.
+
+Pipeline: :func:`wallcal.study.load_study` -> :func:`wallcal.data.load_measurements`
+-> :func:`prepare` (boundary series on the engine grid, comparison times) ->
+engine -> :class:`SimulationResult` (series, metrics, summary).
+Data preparation happens once here; calibration and sensitivity reuse the
+:class:`Prepared` object and call the engine's batch interface directly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import metrics as _metrics
+from .data import Measurements, load_measurements, summarize
+from .engines import get_engine, scheme_of
+from .engines.base import BoundaryInput, EngineOutput, SimulationInput
+from .errors import StudyError
+from .study import Study
+
+
+@dataclass
+class Prepared:
+    """A study's data on an engine grid, ready for one or many runs.
+
+    Attributes
+    ----------
+    study : Study
+    measurements : Measurements
+    inp : SimulationInput
+        Engine input for the study's wall.
+    times : DatetimeIndex
+        Measured timestamps in the comparison period (outputs are formed there).
+    measured : DataFrame
+        Measured value of every sensor at ``times`` (NaN = missing or excluded).
+    """
+
+    study: Study
+    measurements: Measurements
+    inp: SimulationInput
+    times: pd.DatetimeIndex
+    measured: pd.DataFrame
+    engine_name: str
+
+    @property
+    def sensor_outputs(self) -> list[tuple[str, str, str]]:
+        """(sensor name, kind, key) with kind 'probe' or 'flux' and key the probe name or face."""
+        out = []
+        for s in self.study.sensors:
+            if s.quantity == "heat_flux":
+                out.append((s.name, "flux", s.face))
+            else:
+                out.append((s.name, "probe", s.name))
+        return out
+
+    def with_wall(self, wall) -> Prepared:
+        return dataclasses.replace(self, inp=dataclasses.replace(self.inp, wall=wall))
+
+
+def prepare(study: Study, engine: str | None = None, *, time_step: float | None = None,
+            grid_constant: float | None = None, node_rule: str | None = None,
+            measurements: Measurements | None = None) -> Prepared:
+    """Put a study's data onto the engine grid.
+
+    Parameters
+    ----------
+    study : Study
+    engine : str, optional
+        Engine name; default the study's ``simulation.engine``.
+    time_step : float, optional
+        [s]; default the study's.
+    grid_constant : float, optional
+        C [-]; default the study's.
+    node_rule : str, optional
+        ``"wallcal"`` or ``"energyplus"``.
+    measurements : Measurements, optional
+        Already loaded data (avoid reading the file again).
+    """
+    sim = study.simulation
+    engine = engine or sim.engine
+    dt = float(time_step or sim.time_step)
+    C = float(grid_constant or sim.grid_constant)
+    if dt <= 0 or not math.isfinite(dt):
+        raise StudyError([f"simulation.time_step: must be > 0, got {dt}"])
+    if C <= 0 or not math.isfinite(C):
+        raise StudyError([f"simulation.grid_constant: must be > 0, got {C}"])
+    meas = measurements if measurements is not None else load_measurements(study)
+    frame = meas.frame
+    p = study.period
+    t0 = pd.Timestamp(p.warmup_start) if p.warmup_start else frame.index[0]
+    start, end = pd.Timestamp(p.start), pd.Timestamp(p.end)
+    n_steps = int(math.ceil((end - t0).total_seconds() / dt - 1e-9))
+    grid_s = np.arange(n_steps + 1) * dt
+    t_s = (frame.index - t0).total_seconds().to_numpy()
+
+    def on_grid(col):
+        v = frame[col].to_numpy()
+        ok = np.isfinite(v)
+        return np.interp(grid_s, t_s[ok], v[ok])
+
+    ext = BoundaryInput(study.exterior.type, on_grid("exterior"), study.exterior.surface_coefficient)
+    intr = BoundaryInput(study.interior.type, on_grid("interior"), study.interior.surface_coefficient)
+    in_period = (frame.index >= start) & (frame.index <= end)
+    times = frame.index[in_period]
+    measured = frame.loc[in_period, [s.name for s in study.sensors]]
+    positions = (times - t0).total_seconds().to_numpy() / dt
+    probes = tuple(s.name for s in study.sensors if s.quantity == "temperature")
+    faces = tuple(dict.fromkeys(s.face for s in study.sensors if s.quantity == "heat_flux"))
+    inp = SimulationInput(
+        wall=study.wall, t0=t0, time_step=dt, exterior=ext, interior=intr, output_positions=positions,
+        probes=probes, flux_faces=faces, grid_constant=C, node_rule=node_rule or sim.node_rule,
+        scheme=scheme_of(engine), options={"stiff_limit": sim.stiff_limit},
+    )
+    return Prepared(study=study, measurements=meas, inp=inp, times=times, measured=measured, engine_name=engine)
+
+
+@dataclass
+class SimulationResult:
+    """Simulated and measured series with their metrics.
+
+    Attributes
+    ----------
+    measured, simulated : DataFrame
+        Index: measured timestamps of the comparison period; one column per sensor.
+        Temperatures [degC], heat fluxes [W/m2] positive towards the interior.
+    metrics : DataFrame
+        One row per sensor (see :mod:`wallcal.metrics`).
+    summary : DataFrame
+        Measured signals over the period (Table III).
+    info : dict
+        Engine facts (path, nodes, energy balance, run time), spikes, gaps.
+    """
+
+    study: Study
+    engine: str
+    measured: pd.DataFrame
+    simulated: pd.DataFrame
+    metrics: pd.DataFrame
+    summary: pd.DataFrame
+    info: dict = field(default_factory=dict)
+    spikes: pd.DataFrame | None = None
+    bridged_gaps: pd.DataFrame | None = None
+
+    def write(self, out_dir: str | Path) -> Path:
+        """Write ``simulated.csv``, ``metrics.csv``, ``summary.csv``, ``measured.csv`` and
+        ``info.json`` into ``out_dir`` atomically."""
+        from .outputs import output_dir
+
+        with output_dir(out_dir, manifest=manifest_of(self.study, "simulate")) as tmp:
+            self.write_into(Path(tmp))
+        return Path(out_dir)
+
+    def write_into(self, d: Path) -> None:
+        sim = self.simulated.copy()
+        sim.index = sim.index.strftime("%Y-%m-%dT%H:%M:%S")
+        sim.to_csv(d / "simulated.csv", float_format="%.6g")
+        meas = self.measured.copy()
+        meas.index = meas.index.strftime("%Y-%m-%dT%H:%M:%S")
+        meas.to_csv(d / "measured.csv", float_format="%.6g")
+        self.metrics.to_csv(d / "metrics.csv", index=False, float_format="%.6g")
+        self.summary.to_csv(d / "summary.csv", float_format="%.6g")
+        if self.spikes is not None and len(self.spikes):
+            self.spikes.to_csv(d / "spikes.csv", index=False)
+        (d / "info.json").write_text(json.dumps(self.info, indent=2, default=str))
+
+
+def manifest_of(study: Study, command: str) -> dict:
+    """Traceability entries for an output directory."""
+    from .data import file_sha256
+
+    data_hash = None
+    try:
+        data_hash = file_sha256(study.data.file)
+    except OSError:
+        pass
+    return {"command": command, "study_file": str(study.path) if study.path else None,
+            "study_sha256": study.sha256, "data_file": str(study.data.file), "data_sha256": data_hash}
+
+
+def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> SimulationResult:
+    """Assemble a :class:`SimulationResult` from an engine's output."""
+    study = prep.study
+    sim = {}
+    for name, kind, key in prep.sensor_outputs:
+        sim[name] = out.temperatures[key] if kind == "probe" else out.fluxes[key]
+    simulated = pd.DataFrame(sim, index=prep.times)
+    acc = {s.name: (s.accuracy, s.accuracy_relative) for s in study.sensors}
+    met = _metrics.table(prep.measured, simulated, acc)
+    excluded = {s.name: int(prep.measured[s.name].isna().sum()) for s in study.sensors}
+    summ = summarize(prep.measurements.frame, study.period.start, study.period.end)
+    info = dict(out.info)
+    info.update({
+        "engine": engine,
+        "time_step_s": prep.inp.time_step,
+        "grid_constant": prep.inp.grid_constant,
+        "comparison_samples": len(prep.times),
+        "skipped_samples": excluded,
+        "spikes_found": int(len(prep.measurements.spikes)),
+        "spikes_removed": bool(study.data.remove_spikes),
+        "bridged_gaps": int(len(prep.measurements.bridged_gaps)),
+    })
+    return SimulationResult(study=study, engine=engine, measured=prep.measured.copy(), simulated=simulated,
+                            metrics=met, summary=summ, info=info, spikes=prep.measurements.spikes,
+                            bridged_gaps=prep.measurements.bridged_gaps)
+
+
+def simulate(study: Study, engine: str | None = None, *, time_step: float | None = None,
+             grid_constant: float | None = None, node_rule: str | None = None,
+             wall=None, prepared: Prepared | None = None) -> SimulationResult:
+    """Simulate a study and compare with the measurements.
+
+    Parameters
+    ----------
+    study : Study
+        From :func:`wallcal.load_study`.
+    engine : str, optional
+        ``"fd-cn"``, ``"fd-implicit"`` or ``"energyplus"``; default the study's.
+    time_step : float, optional
+        [s]
+    grid_constant : float, optional
+        C = dx^2 / (alpha dt) [-]
+    node_rule : str, optional
+        ``"wallcal"`` or ``"energyplus"``.
+    wall : Wall, optional
+        Run this wall instead of the study's (same probes).
+    prepared : Prepared, optional
+        Reuse prepared data (e.g. from :func:`prepare`).
+
+    Returns
+    -------
+    SimulationResult
+    """
+    engine = engine or study.simulation.engine
+    prep = prepared or prepare(study, engine, time_step=time_step, grid_constant=grid_constant,
+                               node_rule=node_rule)
+    if wall is not None:
+        prep = prep.with_wall(wall)
+    eng = get_engine(engine)
+    t = time.perf_counter()
+    out = eng.run(prep.inp)
+    out.info.setdefault("seconds", time.perf_counter() - t)
+    return result_from_output(prep, out, engine)

@@ -1,0 +1,158 @@
+"""Tests of wallcal.standards.iso6946.
+
+References: ISO 6946:2017 Table 7 (surface resistances), Table 8 (unventilated air
+layers), eq. (6)-(8); the study wall of the calibration paper
+(/work/shared/reference/wall_calibration_paper.md, Tables I and II, design U 0.12).
+Expected totals are written out by hand (sums of d / lambda) in each test.
+"""
+
+import pytest
+
+from wallcal.errors import StudyError
+from wallcal.standards import iso6946
+from wallcal.wall import Layer, Wall
+
+
+def study_wall(air_material="Air gap, slightly ventilated"):
+    """The paper's nine-layer wall: Table I thicknesses, Table II base case for #3..#9."""
+    return Wall(
+        (
+            Layer("1", 0.015, 0.13, 500, 1600, "Wood panel"),
+            Layer("2", 0.035, material=air_material),
+            Layer("3", 0.10, 0.04, 135, 1030, "High density mineral wool"),
+            Layer("4", 0.0125, 0.2, 530, 1600, "LVL panel"),
+            Layer("5", 0.04, 0.035, 40, 1030, "Low density mineral wool"),
+            Layer("6", 0.0125, 0.2, 530, 1600, "LVL panel"),
+            Layer("7", 0.095, 0.035, 40, 1030, "Low density mineral wool"),
+            Layer("8", 0.055, 0.035, 40, 1030, "Low density mineral wool"),
+            Layer("9", 0.025, 0.21, 900, 1000, "Plasterboard"),
+        )
+    )
+
+
+# sum of d / lambda of layers #3..#9 by hand
+R_3_TO_9 = 0.10 / 0.04 + 0.0125 / 0.2 + 0.04 / 0.035 + 0.0125 / 0.2 + 0.095 / 0.035 + 0.055 / 0.035 + 0.025 / 0.21
+R_WOOD = 0.015 / 0.13
+
+
+def test_surface_resistances_table_7():
+    assert iso6946.surface_resistances("horizontal") == (0.13, 0.04)
+    assert iso6946.surface_resistances("upward") == (0.10, 0.04)
+    assert iso6946.surface_resistances("downward") == (0.17, 0.04)
+    with pytest.raises(StudyError, match="direction"):
+        iso6946.surface_resistances("sideways")
+
+
+@pytest.mark.parametrize(
+    ("d_mm", "up", "hor", "down"),
+    [  # ISO 6946:2017 Table 8 rows
+        (0, 0.00, 0.00, 0.00),
+        (5, 0.11, 0.11, 0.11),
+        (7, 0.13, 0.13, 0.13),
+        (10, 0.15, 0.15, 0.15),
+        (15, 0.16, 0.17, 0.17),
+        (25, 0.16, 0.18, 0.19),
+        (50, 0.16, 0.18, 0.21),
+        (100, 0.16, 0.18, 0.22),
+        (300, 0.16, 0.18, 0.23),
+    ],
+)
+def test_table_8_nodes(d_mm, up, hor, down):
+    d = d_mm / 1000
+    assert iso6946.unventilated_air_layer_resistance(d, "upward") == pytest.approx(up)
+    assert iso6946.unventilated_air_layer_resistance(d, "horizontal") == pytest.approx(hor)
+    assert iso6946.unventilated_air_layer_resistance(d, "downward") == pytest.approx(down)
+
+
+def test_table_8_interpolation_and_limits():
+    # linear interpolation between rows (allowed by the standard)
+    assert iso6946.unventilated_air_layer_resistance(0.0125, "horizontal") == pytest.approx(0.16)
+    assert iso6946.unventilated_air_layer_resistance(0.075, "downward") == pytest.approx(0.215)
+    assert iso6946.unventilated_air_layer_resistance(0.035, "horizontal") == pytest.approx(0.18)
+    with pytest.raises(StudyError, match="thickness_m"):
+        iso6946.unventilated_air_layer_resistance(0.35)
+    assert iso6946.air_layer_resistance(0.035, "slightly") == pytest.approx(0.09)
+    assert iso6946.air_layer_resistance(0.035, "well_ventilated") == 0.0
+    with pytest.raises(StudyError, match="ventilation"):
+        iso6946.air_layer_resistance(0.035, "breezy")
+
+
+def test_single_layer_hand_calculation():
+    wall = Wall((Layer("a", 0.2, 0.04, 30, 1000),))
+    res = iso6946.thermal_resistance(wall)
+    assert res.resistance == pytest.approx(5.0)
+    assert res.u_value == pytest.approx(1 / (0.13 + 5.0 + 0.04))
+    assert iso6946.u_value(wall, direction="upward") == pytest.approx(1 / (0.10 + 5.0 + 0.04))
+
+
+def test_study_wall_is_about_the_design_u_value():
+    res = iso6946.thermal_resistance(study_wall())
+    # half of 0.18 for the air gap; wood panel + Rse = 0.1554 > 0.15 capped to 0.15
+    expected_rt = 0.13 + R_3_TO_9 + 0.09 + 0.15
+    assert res.total_resistance == pytest.approx(expected_rt, rel=1e-12)
+    assert res.u_value == pytest.approx(0.1171, abs=1e-4)
+    assert abs(res.u_value - 0.12) < 0.005  # the paper's design U is 0.12 W/(m2K)
+    assert any("capped" in n for n in res.notes)
+
+
+def test_study_wall_explicit_argument_equals_material_detection():
+    by_text = iso6946.thermal_resistance(study_wall())
+    by_arg = iso6946.thermal_resistance(study_wall("Air gap"), air_layers={"2": "slightly_ventilated"})
+    assert by_arg.u_value == pytest.approx(by_text.u_value, rel=1e-14)
+
+
+def test_air_layer_without_ventilation_needs_the_argument():
+    with pytest.raises(StudyError, match=r"air_layers=\{'2'"):
+        iso6946.thermal_resistance(study_wall("Air gap"))
+    with pytest.raises(StudyError, match="no layer with this id"):
+        iso6946.thermal_resistance(study_wall(), air_layers={"12": "slightly"})
+
+
+def test_unventilated_and_well_ventilated():
+    un = iso6946.thermal_resistance(study_wall(), air_layers={"2": "unventilated"})
+    assert un.total_resistance == pytest.approx(0.13 + R_3_TO_9 + 0.18 + R_WOOD + 0.04, rel=1e-12)
+    well = iso6946.thermal_resistance(study_wall(), air_layers={"2": "well"})
+    # layers 1, 2 ignored, Rse = Rsi = 0.13
+    assert well.total_resistance == pytest.approx(0.13 + R_3_TO_9 + 0.13, rel=1e-12)
+    assert well.rse == 0.13
+    assert [b.kind for b in well.layers[:2]] == ["ignored", "ignored"]
+
+
+def test_opening_area_interpolation_iso6946_2017():
+    un = iso6946.thermal_resistance(study_wall(), air_layers={"2": "unventilated"}).total_resistance
+    well = iso6946.thermal_resistance(study_wall(), air_layers={"2": "well"}).total_resistance
+    for av, expected in ((500, un), (1000, 0.5 * un + 0.5 * well), (1500, well), (1200, 0.3 * un + 0.7 * well)):
+        got = iso6946.thermal_resistance(study_wall(), opening_area_mm2_per_m=av).total_resistance
+        assert got == pytest.approx(expected, rel=1e-12), av
+    assert iso6946.thermal_resistance(study_wall(), opening_area_mm2_per_m=1000).u_value == pytest.approx(
+        0.1172, abs=1e-4
+    )
+
+
+def test_air_layers_empty_dict_disables_detection():
+    wall = Wall((Layer("a", 0.1, 0.04, 30, 1000), Layer("gap", 0.02, thermal_resistance=0.3, material="air")))
+    res = iso6946.thermal_resistance(wall, air_layers={})
+    assert res.resistance == pytest.approx(2.5 + 0.3)
+
+
+def test_contact_resistance_and_temperature():
+    wall = Wall(
+        (
+            Layer("a", 0.1, 0.04, 30, 1000, contact_resistance=0.05, conductivity_temperature_coefficient=0.0046),
+            Layer("b", 0.02, 0.2, 500, 1600),
+        )
+    )
+    res = iso6946.thermal_resistance(wall)
+    assert res.resistance == pytest.approx(2.5 + 0.05 + 0.1)
+    import math
+
+    hot = iso6946.thermal_resistance(wall, mean_temperature_C=23.65)
+    assert hot.resistance == pytest.approx(0.1 / (0.04 * math.exp(0.0046 * 13.65)) + 0.05 + 0.1)
+
+
+def test_resolve_layers_for_iso13786():
+    layers, cut = iso6946.resolve_layers(study_wall())
+    assert not cut and len(layers) == 9
+    assert layers[1].is_massless and layers[1].thermal_resistance == pytest.approx(0.09)
+    layers, cut = iso6946.resolve_layers(study_wall(), air_layers={"2": "well"})
+    assert cut and [layer.id for layer in layers] == ["3", "4", "5", "6", "7", "8", "9"]
