@@ -31,7 +31,9 @@ def study_wall(air_material="Air gap, slightly ventilated"):
 
 
 # sum of d / lambda of layers #3..#9 by hand
-R_3_TO_9 = 0.10 / 0.04 + 0.0125 / 0.2 + 0.04 / 0.035 + 0.0125 / 0.2 + 0.095 / 0.035 + 0.055 / 0.035 + 0.025 / 0.21
+R_3_TO_9 = (
+    0.10 / 0.04 + 0.0125 / 0.2 + 0.04 / 0.035 + 0.0125 / 0.2 + 0.095 / 0.035 + 0.055 / 0.035 + 0.025 / 0.21
+)
 R_WOOD = 0.015 / 0.13
 
 
@@ -121,7 +123,12 @@ def test_unventilated_and_well_ventilated():
 def test_opening_area_interpolation_iso6946_2017():
     un = iso6946.thermal_resistance(study_wall(), air_layers={"2": "unventilated"}).total_resistance
     well = iso6946.thermal_resistance(study_wall(), air_layers={"2": "well"}).total_resistance
-    for av, expected in ((500, un), (1000, 0.5 * un + 0.5 * well), (1500, well), (1200, 0.3 * un + 0.7 * well)):
+    for av, expected in (
+        (500, un),
+        (1000, 0.5 * un + 0.5 * well),
+        (1500, well),
+        (1200, 0.3 * un + 0.7 * well),
+    ):
         got = iso6946.thermal_resistance(study_wall(), opening_area_mm2_per_m=av).total_resistance
         assert got == pytest.approx(expected, rel=1e-12), av
     assert iso6946.thermal_resistance(study_wall(), opening_area_mm2_per_m=1000).u_value == pytest.approx(
@@ -138,7 +145,9 @@ def test_air_layers_empty_dict_disables_detection():
 def test_contact_resistance_and_temperature():
     wall = Wall(
         (
-            Layer("a", 0.1, 0.04, 30, 1000, contact_resistance=0.05, conductivity_temperature_coefficient=0.0046),
+            Layer(
+                "a", 0.1, 0.04, 30, 1000, contact_resistance=0.05, conductivity_temperature_coefficient=0.0046
+            ),
             Layer("b", 0.02, 0.2, 500, 1600),
         )
     )

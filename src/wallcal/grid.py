@@ -208,7 +208,7 @@ class PropertyArrays:
 
         return cls(
             thickness=arr(lambda L: L.thickness),
-            conductivity=arr(lambda L: 0.0 if L.is_massless else (L.conductivity or 0.0)),
+            conductivity=arr(lambda L: 0.0 if L.is_massless else L.conductivity_at(L.reference_temperature)),
             volumetric_heat_capacity=arr(lambda L: L.volumetric_heat_capacity),
             temperature_coefficient=arr(lambda L: L.conductivity_temperature_coefficient),
             reference_temperature=arr(lambda L: L.reference_temperature),

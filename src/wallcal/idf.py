@@ -242,15 +242,18 @@ def wall_to_idf_objects(
                 parts.append(
                     idf_object(
                         "Material:AirGap",
-                        [(rname, f"Name (contact {layer.id}|{wall.layers[i + 1].id})"),
-                         (rc, "Thermal Resistance {m2-K/W}")],
+                        [
+                            (rname, f"Name (contact {layer.id}|{wall.layers[i + 1].id})"),
+                            (rc, "Thermal Resistance {m2-K/W}"),
+                        ],
                     )
                 )
     parts.extend(props)
     parts.append(
         idf_object(
             "Construction",
-            [(cname, "Name")] + [(n, "Outside Layer" if j == 0 else f"Layer {j + 1}") for j, n in enumerate(names)],
+            [(cname, "Name")]
+            + [(n, "Outside Layer" if j == 0 else f"Layer {j + 1}") for j, n in enumerate(names)],
         )
     )
     if len(names) > 10:
@@ -259,8 +262,11 @@ def wall_to_idf_objects(
             "(contact resistances count as layers)"
         )
     if settings:
-        parts.append(cfd_settings_object(grid_constant=grid_constant, scheme=scheme,
-                                          inside_convergence=inside_convergence))
+        parts.append(
+            cfd_settings_object(
+                grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence
+            )
+        )
     return "\n".join(parts)
 
 

@@ -124,7 +124,6 @@ class PreparedFD:
         grid, wall = self.grid, self.wall
         nl = grid.n_links
         kind = np.zeros(nl, dtype=np.int64)
-        coef = np.zeros(nl)
         tref = np.zeros(nl)
         tab_start = np.zeros(nl, dtype=np.int64)
         tab_len = np.zeros(nl, dtype=np.int64)
@@ -268,7 +267,10 @@ class FDEngine(Engine):
         self.stiff_limit = stiff_limit
 
     def prepare(self, inp: SimulationInput, contact_layers: frozenset[int] = frozenset()) -> PreparedFD:
-        grid = build_grid(inp.wall, inp.time_step, inp.grid_constant, inp.node_rule, contact_layers)
+        # the grid follows C and the time step; options["grid_time_step"] builds it for another step
+        # (convergence studies in time on a fixed grid)
+        grid_dt = inp.options.get("grid_time_step", inp.time_step)
+        grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, contact_layers)
         return PreparedFD(inp, grid, stiff_limit=inp.options.get("stiff_limit", self.stiff_limit))
 
     def run(self, inp: SimulationInput) -> EngineOutput:

@@ -121,11 +121,32 @@ def _solve(Aoff, cp, inv, rhs, x, m):
 
 @njit(cache=True)
 def _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, Tfull):
+    """Link conductance = mean of lambda(T) over the temperatures of its two nodes.
+
+    That is the Kirchhoff-transform conductance (U(T_a) - U(T_b)) / (T_a - T_b) / dx with
+    U = integral of lambda dT, which makes the discrete steady state exact at the nodes:
+    in closed form for the exponential law, by Simpson's rule for a table.
+    """
     for lnk in range(g.shape[0]):
-        if kind[lnk] != 0:
-            tm = 0.5 * (Tfull[lnk] + Tfull[lnk + 1])
-            g[lnk] = g_ref[lnk] * _link_factor(kind[lnk], coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk],
-                                               tab_T, tab_v, tm)
+        k = kind[lnk]
+        if k == 0:
+            continue
+        ta = Tfull[lnk]
+        tb = Tfull[lnk + 1]
+        if k == 1:
+            f = coef[lnk]
+            d = f * (ta - tb)
+            if abs(d) > 1e-4:
+                fac = (np.exp(f * (ta - tref[lnk])) - np.exp(f * (tb - tref[lnk]))) / d
+            else:
+                fac = np.exp(f * (0.5 * (ta + tb) - tref[lnk])) * (1.0 + d * d / 24.0)
+        else:
+            fa = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta)
+            fb = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, tb)
+            fm = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v,
+                              0.5 * (ta + tb))
+            fac = (fa + 4.0 * fm + fb) / 6.0
+        g[lnk] = g_ref[lnk] * fac
 
 
 @njit(cache=True)

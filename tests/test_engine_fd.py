@@ -1,0 +1,264 @@
+"""Physics verification of the fd engine: steady state, periodic regime, convergence order,
+energy balance, lambda(T), boundary types, batches, ringing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analytic import periodic_solution
+from conftest import make_input, three_layer_wall
+from wallcal.engines.fd import FDEngine
+from wallcal.grid import PropertyArrays
+from wallcal.wall import Layer, Probe, Wall
+
+
+def run(inp, scheme=None):
+    return FDEngine(scheme or inp.scheme).run(inp)
+
+
+# ---------------------------------------------------------------------------- steady state
+@pytest.mark.parametrize("scheme", ["cn", "implicit"])
+def test_steady_state_series_resistance(scheme):
+    wall = three_layer_wall()
+    n = 50
+    inp = make_input(wall, np.full(n + 1, -5.0), np.full(n + 1, 20.0), 600.0, scheme=scheme)
+    out = run(inp)
+    expect = wall.steady_profile(-5.0, 20.0, [p.depth for p in wall.probes])
+    got = np.array([out.temperatures[p.name] for p in wall.probes])
+    # round-off only: the discrete steady state of a piecewise-linear profile is exact
+    np.testing.assert_allclose(got, expect[:, None] * np.ones((1, n + 1)), atol=1e-10)
+    q = (-5.0 - 20.0) / wall.resistance  # towards the interior: negative, heat leaves outwards
+    np.testing.assert_allclose(out.fluxes["exterior"], q, rtol=1e-10)
+    np.testing.assert_allclose(out.fluxes["interior"], q, rtol=1e-10)
+
+
+def test_steady_state_with_contact_and_massless_layers():
+    layers = (
+        Layer("a", 0.1, conductivity=0.5, density=1500.0, specific_heat=900.0, contact_resistance=0.2),
+        Layer("air", 0.02, thermal_resistance=0.17),
+        Layer("b", 0.1, conductivity=0.04, density=30.0, specific_heat=1400.0),
+    )
+    wall = Wall(layers, (Probe("in_a", 0.05), Probe("face_a", 0.1, side="exterior"),
+                         Probe("face_a_in", 0.1, side="interior"), Probe("mid_air", 0.11), Probe("mid_b", 0.17)))
+    inp = make_input(wall, np.full(11, 0.0), np.full(11, 20.0), 300.0)
+    out = run(inp)
+    r_tot = 0.2 + 0.2 + 0.17 + 2.5
+    q = 20.0 / r_tot
+    expect = {"in_a": q * 0.1, "face_a": q * 0.2, "face_a_in": q * 0.4, "mid_air": q * (0.4 + 0.085),
+              "mid_b": q * (0.57 + 0.05 / 0.04)}
+    for k, v in expect.items():
+        np.testing.assert_allclose(out.temperatures[k], v, atol=1e-10, err_msg=k)
+    np.testing.assert_allclose(out.fluxes["interior"], -q, rtol=1e-10)  # heat flows outwards
+
+
+@pytest.mark.parametrize("ext,intr", [("air_temperature", "air_temperature"), ("heat_flux", "air_temperature"),
+                                      ("surface_temperature", "heat_flux")])
+def test_steady_state_other_boundaries(ext, intr):
+    wall = three_layer_wall()
+    h_e, h_i = 25.0, 7.7
+    R = wall.resistance
+    # q: flux density towards the interior; ts_e: exterior surface temperature; T(x) = ts_e - q R(x)
+    if ext == "air_temperature":
+        ue, ui = -10.0, 20.0
+        q = (ue - ui) / (1 / h_e + R + 1 / h_i)
+        ts_e = ue - q / h_e
+    elif ext == "heat_flux":
+        q, ui = -8.0, 20.0  # 8 W/m2 leave through the exterior face; interior air at 20 degC
+        ue = q
+        ts_e = ui + q / h_i + q * R
+    else:
+        ue, q = -10.0, -4.0  # exterior surface at -10 degC, 4 W/m2 leave the room through the wall
+        ui = q
+        ts_e = ue
+    inp = make_input(wall, np.full(21, ue), np.full(21, ui), 600.0, ext=ext, intr=intr, h_e=h_e, h_i=h_i)
+    out = run(inp)
+    r_frac = wall.steady_profile(0.0, 1.0, [p.depth for p in wall.probes])
+    for p, frac in zip(wall.probes, r_frac, strict=True):
+        np.testing.assert_allclose(out.temperatures[p.name], ts_e - q * frac * R, atol=1e-9)
+    np.testing.assert_allclose(out.fluxes["exterior"], q, rtol=1e-9)
+    np.testing.assert_allclose(out.fluxes["interior"], q, rtol=1e-9)
+
+
+# ---------------------------------------------------------------------------- periodic regime
+def periodic_case(dt, C, scheme, days=6, period=86400.0, rule="wallcal"):
+    wall = three_layer_wall()
+    t = np.arange(int(days * 86400 / dt) + 1) * dt
+    w = 2 * np.pi / period
+    amp_e, amp_i = 10.0, 2.0 * np.exp(1j * 0.7)
+    ue = 5.0 + np.real(amp_e * np.exp(1j * w * t))
+    ui = 20.0 + np.real(amp_i * np.exp(1j * w * t))
+    inp = make_input(wall, ue, ui, dt, scheme=scheme, C=C, rule=rule)
+    out = run(inp)
+    amps, qe, qi = periodic_solution(wall, period, amp_e, amp_i, [p.depth for p in wall.probes])
+    R = wall.resistance
+    last = t >= (days - 1) * 86400
+    errs = {}
+    for p, a, frac in zip(wall.probes, amps, wall.steady_profile(0.0, 1.0, [p.depth for p in wall.probes]),
+                          strict=True):
+        exact = 5.0 + 15.0 * frac + np.real(a * np.exp(1j * w * t))
+        errs[p.name] = np.abs(out.temperatures[p.name] - exact)[last].max()
+    q_mean = (5.0 - 20.0) / R  # towards the interior
+    errs["qe"] = np.abs(out.fluxes["exterior"] - (q_mean + np.real(qe * np.exp(1j * w * t))))[last].max()
+    errs["qi"] = np.abs(out.fluxes["interior"] - (q_mean + np.real(qi * np.exp(1j * w * t))))[last].max()
+    return errs
+
+
+def test_periodic_regime_matches_transfer_matrix_solution():
+    # fine grid: dt = 30 s, C = 1 -> every probe within 0.01 degC of the analytic periodic solution
+    errs = periodic_case(30.0, 1.0, "cn")
+    for k in ("P0", "P1", "P2", "P3"):
+        assert errs[k] < 0.01, errs
+    # face fluxes within 1 % of their 24-h amplitude (|q_e| ~ 6.6 W/m2 here)
+    assert errs["qe"] < 0.05 and errs["qi"] < 0.01, errs
+
+
+def test_periodic_regime_default_grid_is_close():
+    errs = periodic_case(60.0, 2.0, "cn")
+    assert max(errs[k] for k in ("P0", "P1", "P2", "P3")) < 0.05, errs
+
+
+# ---------------------------------------------------------------------------- order of convergence
+def _conv_errors(scheme, dts, ref_dt, wall, nonlinear=False):
+    days = 2
+    horizon = days * 86400
+
+    def series(dt):
+        t = np.arange(int(horizon / dt) + 1) * dt
+        ue = 5 + 10 * np.sin(2 * np.pi * t / 86400) + 3 * np.sin(2 * np.pi * t / 21600 + 1)
+        ui = 20 + 2 * np.sin(2 * np.pi * t / 86400 + 0.5)
+        return ue, ui
+
+    def sim(dt):
+        ue, ui = series(dt)
+        every = int(round(3600 / dt))
+        inp = make_input(wall, ue, ui, dt, scheme=scheme, out_every=every, C=2.0, grid_time_step=600.0)
+        return np.array([v for v in run(inp).temperatures.values()])
+
+    ref = sim(ref_dt)
+    return [np.abs(sim(dt) - ref).max() for dt in dts]
+
+
+@pytest.mark.parametrize("scheme,order", [("cn", 2.0), ("implicit", 1.0)])
+def test_observed_order_in_time(scheme, order):
+    wall = three_layer_wall()
+    dts = [1200.0, 600.0, 300.0]
+    errs = _conv_errors(scheme, dts, 37.5 if scheme == "cn" else 9.375, wall)
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    # observed order within 0.25 of the theoretical one
+    assert np.all(np.abs(orders - order) < 0.25), (errs, orders)
+
+
+def test_observed_order_lambda_T_cn():
+    layers = (
+        Layer("wool", 0.12, conductivity=0.04, density=60.0, specific_heat=1030.0,
+              conductivity_temperature_coefficient=0.02, reference_temperature=10.0),
+        Layer("brick", 0.10, conductivity=0.8, density=1800.0, specific_heat=840.0),
+    )
+    wall = Wall(layers, (Probe("a", 0.06), Probe("b", 0.17)))
+    dts = [1200.0, 600.0, 300.0]
+    errs = _conv_errors("cn", dts, 37.5, wall)
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(orders > 1.75), (errs, orders)
+
+
+# ---------------------------------------------------------------------------- lambda(T)
+def test_lambda_T_steady_state_matches_kirchhoff_solution():
+    f, lam0, tr, L = 0.02, 0.04, 10.0, 0.1
+    wall = Wall((Layer("w", L, conductivity=lam0, density=50.0, specific_heat=1000.0,
+                       conductivity_temperature_coefficient=f, reference_temperature=tr),),
+                tuple(Probe(f"x{i}", x) for i, x in enumerate([0.025, 0.05, 0.075])))
+    t1, t2 = -10.0, 40.0
+    # C such that dx = 2.5 mm exactly (40 intervals): the probes sit on nodes
+    C = 0.0025**2 / (lam0 / 50e3 * 60.0)
+    inp = make_input(wall, np.full(6, t1), np.full(6, t2), 60.0, C=C)
+    out = run(inp)
+
+    def U(T):  # Kirchhoff transform
+        return lam0 / f * np.exp(f * (T - tr))
+
+    for p in wall.probes:
+        u = U(t1) + (U(t2) - U(t1)) * p.depth / L
+        exact = tr + np.log(u * f / lam0) / f
+        # link conductances are Kirchhoff means of lambda(T): the discrete steady state is exact at nodes
+        np.testing.assert_allclose(out.temperatures[p.name], exact, atol=1e-9)
+    q = (U(t1) - U(t2)) / L
+    np.testing.assert_allclose(out.fluxes["interior"], q, rtol=1e-9)
+
+
+def test_lambda_table_equals_exponential_when_dense():
+    f = 0.01
+    temps = np.linspace(-30, 80, 400)
+    table = tuple((float(T), float(0.04 * np.exp(f * (T - 10)))) for T in temps)
+    mk = [dict(conductivity_temperature_coefficient=f), dict(conductivity_table=table, conductivity=None)]
+    res = []
+    for kw in mk:
+        wall = Wall((Layer("w", 0.1, density=50.0, specific_heat=1000.0, reference_temperature=10.0,
+                           **({"conductivity": 0.04} | kw)),), (Probe("m", 0.05),))
+        t = np.arange(1441) * 60.0
+        inp = make_input(wall, 10 + 20 * np.sin(2 * np.pi * t / 86400), np.full(1441, 20.0), 60.0)
+        res.append(run(inp).temperatures["m"])
+    np.testing.assert_allclose(res[0], res[1], atol=2e-4)
+
+
+# ---------------------------------------------------------------------------- energy balance
+@pytest.mark.parametrize("scheme", ["cn", "implicit"])
+@pytest.mark.parametrize("ext,intr", [("surface_temperature", "surface_temperature"),
+                                      ("air_temperature", "air_temperature"), ("heat_flux", "air_temperature")])
+def test_energy_balance_closes(scheme, ext, intr):
+    wall = three_layer_wall()
+    wall = wall.replace_layer("wool", conductivity_temperature_coefficient=0.005)
+    t = np.arange(2 * 1440 + 1) * 60.0
+    ue = 5 + 10 * np.sin(2 * np.pi * t / 86400) if ext != "heat_flux" else 20 * np.sin(2 * np.pi * t / 86400)
+    ui = 20 + np.sin(2 * np.pi * t / 86400)
+    inp = make_input(wall, ue, ui, 60.0, scheme=scheme, ext=ext, intr=intr, h_e=25.0, h_i=7.7)
+    out = run(inp)
+    assert abs(out.info["energy_residual_J_m2"]) < 1e-9 * out.info["energy_throughput_J_m2"]
+
+
+# ---------------------------------------------------------------------------- batches
+def test_batch_equals_single_runs():
+    wall = three_layer_wall()
+    t = np.arange(1441) * 60.0
+    inp = make_input(wall, 5 + 10 * np.sin(2 * np.pi * t / 86400), np.full(1441, 20.0), 60.0, out_every=5)
+    walls = [wall.replace_layer("wool", conductivity=c) for c in (0.035, 0.04, 0.045)]
+    walls.append(wall.replace_probe("P1", depth=0.13))
+    prep = FDEngine("cn").prepare(inp)
+    batch = prep.run_walls(walls)
+    for i, w in enumerate(walls):
+        single = prep.run_walls([w])
+        np.testing.assert_array_equal(batch.out[i], single.out[0])
+    # a different probe depth changes that probe only
+    assert not np.allclose(batch.out[3, 1], batch.out[1, 1])
+    np.testing.assert_array_equal(batch.out[3, 0], batch.out[1, 0])
+    props = PropertyArrays.from_walls(walls)
+    assert props.conductivity.shape == (4, 3)
+
+
+# ---------------------------------------------------------------------------- ringing
+@pytest.mark.parametrize("C", [1.0, 2.0, 3.0])
+def test_cn_does_not_ring_after_a_step_change(C):
+    """A 20 K step on the exterior face: probe responses rise monotonically (no overshoot)."""
+    wall = three_layer_wall(probes=(0.0025, 0.01, 0.05, 0.1, 0.2))
+    n = 600
+    ue = np.where(np.arange(n + 1) >= 10, 20.0, 0.0)
+    inp = make_input(wall, ue, np.zeros(n + 1), 60.0, C=C)
+    out = run(inp)
+    for p in wall.probes:
+        d = np.diff(out.temperatures[p.name])
+        assert d.min() > -1e-6 * 20, (p.name, d.min())
+
+
+def test_cn_does_not_ring_with_a_thin_metal_sheet():
+    """A 1 mm steel sheet on the exterior face is far too stiff for CN at dt = 600 s; the stiff
+    link is made implicit, so the sheet's inner face follows the step without oscillating."""
+    layers = (Layer("steel", 0.001, conductivity=50.0, density=7800.0, specific_heat=450.0),
+              Layer("wool", 0.1, conductivity=0.04, density=60.0, specific_heat=1030.0))
+    wall = Wall(layers, (Probe("sheet_in", 0.001), Probe("wool", 0.01)))
+    n = 200
+    ue = np.where(np.arange(n + 1) >= 5, 20.0, 0.0)
+    inp = make_input(wall, ue, np.zeros(n + 1), 600.0)
+    out = run(inp)
+    assert out.info["implicit_links"] >= 1
+    for p in wall.probes:
+        assert np.diff(out.temperatures[p.name]).min() > -1e-6

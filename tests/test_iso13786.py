@@ -1,0 +1,346 @@
+"""Tests of wallcal.standards.iso13786.
+
+Independent references used:
+- the closed-form solution of the periodic heat equation in one slab,
+  theta(x) = [theta_e sinh(k (L - x)) + theta_i sinh(k x)] / sinh(k L), k = (1 + i) / delta
+  (Carslaw & Jaeger, Conduction of Heat in Solids, 2nd ed., section 2.6, periodic
+  surface temperature), written out here with numpy;
+- ISO 13786:2017 Annex A layer matrix in its real-trigonometric form (eq. A.2-A.5),
+  typed in from the standard's expressions;
+- the quasi-steady limit (period -> infinity): series resistances (Wall.steady_profile);
+- a second-order finite-volume solution of the same complex boundary-value problem,
+  built in this file, converging to the analytic one;
+- energy conservation q(0) - q(L) = i w sum(rho c integral theta dx) and reciprocity.
+"""
+
+import numpy as np
+import pytest
+
+from wallcal.errors import StudyError
+from wallcal.standards import iso13786
+from wallcal.wall import Layer, Wall
+
+DAY = 86400.0
+
+
+def study_wall_3_to_9():
+    """Layers #3..#9 of the paper's wall, Table II base case (the modelled wall)."""
+    return Wall(
+        (
+            Layer("3", 0.10, 0.04, 135, 1030, "High density mineral wool"),
+            Layer("4", 0.0125, 0.2, 530, 1600, "LVL panel"),
+            Layer("5", 0.04, 0.035, 40, 1030, "Low density mineral wool"),
+            Layer("6", 0.0125, 0.2, 530, 1600, "LVL panel"),
+            Layer("7", 0.095, 0.035, 40, 1030, "Low density mineral wool"),
+            Layer("8", 0.055, 0.035, 40, 1030, "Low density mineral wool"),
+            Layer("9", 0.025, 0.21, 900, 1000, "Plasterboard"),
+        )
+    )
+
+
+def concrete(d=0.2):
+    return Layer("c", d, 1.8, 2400, 1000, "concrete")
+
+
+# --------------------------------------------------------------------------- layer matrix
+
+
+def test_penetration_depth_hand_value():
+    # concrete: sqrt(1.8 * 86400 / (pi * 2400 * 1000)) = sqrt(0.0206265) = 0.143619 m
+    assert iso13786.penetration_depth(1.8, 2400, 1000) == pytest.approx(0.143619, rel=1e-5)
+    with pytest.raises(StudyError, match="period_s"):
+        iso13786.penetration_depth(1.8, 2400, 1000, period_s=0)
+
+
+@pytest.mark.parametrize("d", [0.001, 0.05, 0.2, 1.0])
+def test_layer_matrix_matches_hyperbolic_closed_form(d):
+    lam, rho, c = 1.8, 2400.0, 1000.0
+    delta = np.sqrt(lam * DAY / (np.pi * rho * c))
+    k = (1 + 1j) / delta
+    z = iso13786.layer_matrix(d, lam, rho, c)
+    np.testing.assert_allclose(z[0, 0], np.cosh(k * d), rtol=1e-12)
+    np.testing.assert_allclose(z[1, 1], np.cosh(k * d), rtol=1e-12)
+    np.testing.assert_allclose(z[0, 1], -np.sinh(k * d) / (lam * k), rtol=1e-12)
+    np.testing.assert_allclose(z[1, 0], -lam * k * np.sinh(k * d), rtol=1e-12)
+    assert np.linalg.det(z) == pytest.approx(1.0, abs=1e-9 * abs(z[0, 0]) ** 2)
+
+
+def test_layer_matrix_real_trig_form_of_the_standard():
+    lam, rho, c, d = 0.2, 530.0, 1600.0, 0.0125
+    delta = np.sqrt(lam * DAY / (np.pi * rho * c))
+    xi = d / delta
+    ch, sh, co, si = np.cosh(xi), np.sinh(xi), np.cos(xi), np.sin(xi)
+    z11 = complex(ch * co, sh * si)
+    z12 = -delta / (2 * lam) * complex(sh * co + ch * si, ch * si - sh * co)
+    z21 = -lam / delta * complex(sh * co - ch * si, sh * co + ch * si)
+    z = iso13786.layer_matrix(d, lam, rho, c)
+    np.testing.assert_allclose([z[0, 0], z[0, 1], z[1, 0]], [z11, z12, z21], rtol=1e-13)
+
+
+def test_thin_layer_limit_is_lumped():
+    # xi -> 0: Z12 -> -d/lambda, Z21 -> -i w rho c d (lumped capacity)
+    lam, rho, c, d = 0.2, 530.0, 1600.0, 1e-4
+    z = iso13786.layer_matrix(d, lam, rho, c)
+    w = 2 * np.pi / DAY
+    assert z[0, 1] == pytest.approx(-d / lam, rel=1e-6)
+    assert z[1, 0] == pytest.approx(-1j * w * rho * c * d, rel=1e-6)
+
+
+def test_vectorised_layer_matrix():
+    z = iso13786.layer_matrix(np.array([0.1, 0.2]), 1.8, 2400, 1000)
+    assert z.shape == (2, 2, 2)
+    np.testing.assert_allclose(z[1], iso13786.layer_matrix(0.2, 1.8, 2400, 1000))
+
+
+# --------------------------------------------------------------------------- wall characteristics
+
+
+def test_single_layer_transmittance_closed_form():
+    lam, rho, c, d = 1.8, 2400.0, 1000.0, 0.2
+    wall = Wall((Layer("c", d, lam, rho, c),))
+    dc = iso13786.dynamic_characteristics(wall, rsi=0.0, rse=0.0)
+    k = (1 + 1j) / np.sqrt(lam * DAY / (np.pi * rho * c))
+    assert dc.Y12 == pytest.approx(lam * k / np.sinh(k * d), rel=1e-12)
+    assert dc.Y11 == pytest.approx(lam * k / np.tanh(k * d), rel=1e-12)
+    assert dc.Y21 == pytest.approx(dc.Y12, rel=1e-12)
+    # positive lag = -arg(Y12) T / 2 pi
+    assert dc.time_shift_h == pytest.approx(-np.angle(lam * k / np.sinh(k * d)) * 24 / (2 * np.pi), rel=1e-9)
+
+
+def test_steady_limit():
+    wall = study_wall_3_to_9()
+    dc = iso13786.dynamic_characteristics(wall, period_s=1e12)
+    assert dc.decrement_factor == pytest.approx(1.0, abs=1e-6)
+    assert abs(dc.Y12) == pytest.approx(wall.u_value(), rel=1e-6)
+    assert dc.time_shift_h / (1e12 / 3600) < 1e-4
+    # single layer, no surface resistance: kappa1 = kappa2 = C / 2 in the quasi-steady limit
+    one = Wall((concrete(),))
+    dc1 = iso13786.dynamic_characteristics(one, period_s=1e12, rsi=0.0, rse=0.0)
+    assert dc1.kappa1 == pytest.approx(0.5 * 2400 * 1000 * 0.2, rel=1e-6)
+    assert dc1.kappa2 == pytest.approx(0.5 * 2400 * 1000 * 0.2, rel=1e-6)
+
+
+def test_time_shift_is_unwrapped_beyond_half_a_period():
+    lags = [iso13786.dynamic_characteristics(Wall((concrete(d),))).time_shift_h for d in (0.1, 0.3, 0.5, 1.0)]
+    assert np.all(np.diff(lags) > 0)
+    assert lags[-2] > 12 and lags[-1] > 24  # 1 m of concrete: more than a full period of lag
+    # lag modulo the period agrees with the standard's arg formula
+    dc = iso13786.dynamic_characteristics(Wall((concrete(1.0),)))
+    assert (dc.time_shift_h + 24 * np.angle(dc.Y12) / (2 * np.pi)) % 24 == pytest.approx(0.0, abs=1e-9)
+
+
+def test_study_wall_figures_regression():
+    # regression values for the layers #3..#9 wall (Table II base case), T = 24 h, Rsi 0.13, Rse 0.04;
+    # U checked by hand: 1 / (0.13 + 8.17262 + 0.04) = 0.119866
+    dc = iso13786.dynamic_characteristics(study_wall_3_to_9())
+    assert dc.u_value == pytest.approx(0.119866, rel=1e-5)
+    assert abs(dc.Y12) == pytest.approx(0.02542, rel=1e-3)
+    assert dc.decrement_factor == pytest.approx(0.2121, rel=1e-3)
+    assert dc.time_shift_h == pytest.approx(10.88, abs=0.01)
+    assert abs(dc.Y11) == pytest.approx(1.666, rel=1e-3)
+    assert abs(dc.Y22) == pytest.approx(0.614, rel=1e-3)
+    assert dc.kappa1 == pytest.approx(24.86e3, rel=1e-3)
+    assert dc.kappa2 == pytest.approx(8.98e3, rel=1e-3)
+
+
+def test_wall_matrix_order_and_surfaces():
+    a, b = Layer("a", 0.1, 0.04, 30, 1000), concrete(0.15)
+    wall = Wall((a, b))  # a exterior
+    z = iso13786.wall_matrix(wall, rsi=0.13, rse=0.04)
+    za = iso13786.layer_matrix(0.1, 0.04, 30, 1000)
+    zb = iso13786.layer_matrix(0.15, 1.8, 2400, 1000)
+    expected = iso13786.resistance_matrix(0.04) @ za @ zb @ iso13786.resistance_matrix(0.13)
+    np.testing.assert_allclose(z, expected, rtol=1e-13)
+    # insulation outside: the interior admittance is much larger than the exterior one
+    dc = iso13786.dynamic_characteristics(wall)
+    assert abs(dc.Y11) > 3 * abs(dc.Y22)
+    assert dc.kappa1 > dc.kappa2
+
+
+def test_air_layer_handled_via_iso6946():
+    wall = Wall(
+        (
+            Layer("1", 0.015, 0.13, 500, 1600, "Wood panel"),
+            Layer("2", 0.035, material="air gap"),
+            *study_wall_3_to_9().layers,
+        )
+    )
+    well = iso13786.dynamic_characteristics(wall, air_layers={"2": "well_ventilated"})
+    ref = iso13786.dynamic_characteristics(study_wall_3_to_9(), rse=0.13)
+    assert well.Y12 == pytest.approx(ref.Y12, rel=1e-12)
+    with pytest.raises(StudyError, match="air_layers"):
+        iso13786.dynamic_characteristics(wall)
+
+
+# --------------------------------------------------------------------------- periodic profile
+
+
+def test_profile_single_layer_closed_form():
+    lam, rho, c, d = 1.8, 2400.0, 1000.0, 0.2
+    wall = Wall((Layer("c", d, lam, rho, c),))
+    x = np.linspace(0, d, 41)
+    te, ti = 3.0 * np.exp(0.3j), 1.0 - 0.5j
+    p = iso13786.periodic_profile(wall, DAY, te, ti, x)
+    k = (1 + 1j) / np.sqrt(lam * DAY / (np.pi * rho * c))
+    theta = (te * np.sinh(k * (d - x)) + ti * np.sinh(k * x)) / np.sinh(k * d)
+    q = -lam * k * (-te * np.cosh(k * (d - x)) + ti * np.cosh(k * x)) / np.sinh(k * d)
+    np.testing.assert_allclose(p.temperature, theta, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(p.heat_flux, q, rtol=1e-11, atol=1e-13)
+    assert p.q_exterior == pytest.approx(q[0], rel=1e-12)
+    assert p.q_interior == pytest.approx(q[-1], rel=1e-12)
+
+
+def mixed_wall():
+    return Wall(
+        (
+            Layer("a", 0.05, 1.0, 2000, 900, contact_resistance=0.02),
+            Layer("gap", 0.03, thermal_resistance=0.17, material="no-mass"),
+            Layer("b", 0.12, 0.04, 40, 1030),
+            Layer("c", 0.0125, 0.21, 900, 1000),
+        )
+    )
+
+
+def test_profile_steady_limit():
+    wall = mixed_wall()
+    x = np.array([0.0, 0.01, 0.03, 0.06, 0.07, 0.1, 0.15, 0.2, 0.205, wall.thickness])
+    p = iso13786.periodic_profile(wall, 1e13, 5.0, 20.0, x)
+    np.testing.assert_allclose(p.temperature.real, wall.steady_profile(5.0, 20.0, x), atol=1e-6)
+    np.testing.assert_allclose(p.temperature.imag, 0.0, atol=1e-5)
+    r = wall.resistance
+    np.testing.assert_allclose(p.heat_flux.real, (5.0 - 20.0) / r, rtol=1e-6)
+
+
+def test_profile_reciprocity_and_transmittance():
+    wall = study_wall_3_to_9()
+    x = [0.0, wall.thickness]
+    from_ext = iso13786.periodic_profile(wall, DAY, 1.0, 0.0, x)
+    from_int = iso13786.periodic_profile(wall, DAY, 0.0, 1.0, x)
+    assert from_ext.q_interior == pytest.approx(-from_int.q_exterior, rel=1e-12)
+    dc = iso13786.dynamic_characteristics(wall, rsi=0.0, rse=0.0)
+    assert from_ext.q_interior == pytest.approx(dc.Y12, rel=1e-12)
+    assert from_ext.q_exterior == pytest.approx(dc.Y22, rel=1e-12)
+    assert -from_int.q_interior == pytest.approx(dc.Y11, rel=1e-12)
+
+
+def test_profile_energy_conservation():
+    from scipy.integrate import simpson
+
+    wall = mixed_wall()
+    te, ti = 2.0 + 1.0j, -0.7j
+    p0 = iso13786.periodic_profile(wall, DAY, te, ti, [0.0])
+    w = 2 * np.pi / DAY
+    stored = 0.0
+    x0 = 0.0
+    for layer in wall.layers:
+        if not layer.is_massless:
+            x = np.linspace(x0, x0 + layer.thickness, 2001)
+            th = iso13786.periodic_profile(wall, DAY, te, ti, x, interface_side="interior").temperature
+            # endpoints: take the value inside this layer
+            th[0] = iso13786.periodic_profile(wall, DAY, te, ti, [x0], interface_side="interior").temperature[
+                0
+            ]
+            th[-1] = iso13786.periodic_profile(
+                wall, DAY, te, ti, [x0 + layer.thickness], interface_side="exterior"
+            ).temperature[0]
+            stored += layer.volumetric_heat_capacity * simpson(th, x=x)
+        x0 += layer.thickness
+    assert p0.q_exterior - p0.q_interior == pytest.approx(1j * w * stored, rel=1e-8)
+
+
+def test_profile_contact_resistance_jump():
+    wall = mixed_wall()
+    xc = 0.05
+    kw = dict(period_s=DAY, t_ext_amplitude=1.0, t_int_amplitude=0.3j, depths_m=[xc])
+    ext = iso13786.periodic_profile(wall, interface_side="exterior", **kw)
+    intr = iso13786.periodic_profile(wall, interface_side="interior", **kw)
+    mean = iso13786.periodic_profile(wall, **kw)
+    assert ext.temperature[0] - intr.temperature[0] == pytest.approx(0.02 * ext.heat_flux[0], rel=1e-12)
+    assert mean.temperature[0] == pytest.approx(0.5 * (ext.temperature[0] + intr.temperature[0]), rel=1e-14)
+
+
+def fv_solution(wall, period_s, te, ti, n_per_layer):
+    """Second-order finite-volume solution of i w rho c theta = d/dx(lambda dtheta/dx), Dirichlet faces."""
+    w = 2 * np.pi / period_s
+    xs, cap, half_r, jump = [], [], [], []
+    x0 = 0.0
+    for layer in wall.layers:
+        if layer.is_massless:
+            jump.append((len(xs), layer.thermal_resistance))
+        else:
+            dx = layer.thickness / n_per_layer
+            for j in range(n_per_layer):
+                xs.append(x0 + (j + 0.5) * dx)
+                cap.append(layer.volumetric_heat_capacity * dx)
+                half_r.append(dx / (2 * layer.conductivity))
+        if layer.contact_resistance:
+            jump.append((len(xs), layer.contact_resistance))
+        x0 += layer.thickness
+    n = len(xs)
+    extra = np.zeros(n + 1)  # resistance at face i (between cell i-1 and i)
+    for idx, r in jump:
+        extra[idx] += r
+    half_r = np.array(half_r)
+    r_face = np.empty(n + 1)
+    r_face[0] = half_r[0] + extra[0]
+    r_face[n] = half_r[-1] + extra[n]
+    r_face[1:n] = half_r[:-1] + half_r[1:] + extra[1:n]
+    g = 1 / r_face
+    a = np.zeros((n, n), complex)
+    rhs = np.zeros(n, complex)
+    for i in range(n):
+        a[i, i] = 1j * w * cap[i] + g[i] + g[i + 1]
+        if i > 0:
+            a[i, i - 1] = -g[i]
+        if i < n - 1:
+            a[i, i + 1] = -g[i + 1]
+    rhs[0] += g[0] * te
+    rhs[-1] += g[n] * ti
+    th = np.linalg.solve(a, rhs)
+    q_ext = g[0] * (te - th[0])
+    q_int = g[n] * (th[-1] - ti)
+    return np.array(xs), th, q_ext, q_int
+
+
+def test_profile_against_finite_volumes_second_order():
+    wall = Wall(
+        (
+            Layer("a", 0.05, 1.0, 2000, 900, contact_resistance=0.02),
+            Layer("b", 0.12, 0.04, 40, 1030),
+            Layer("c", 0.0125, 0.21, 900, 1000),
+        )
+    )
+    te, ti = 1.0, 0.4j
+    errs = []
+    for n in (10, 20, 40):
+        xs, th, q_ext, q_int = fv_solution(wall, 6 * 3600.0, te, ti, n)
+        p = iso13786.periodic_profile(wall, 6 * 3600.0, te, ti, xs)
+        errs.append(max(np.max(np.abs(th - p.temperature)), abs(q_ext - p.q_exterior) / abs(p.q_exterior)))
+    assert errs[-1] < 2e-3
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(orders > 1.8), orders
+
+
+def test_profile_thick_wall_is_stable():
+    # 1.5 m of concrete at a 6 h period: xi ~ 21; near the exterior face the solution is the
+    # semi-infinite one theta_e exp(-k x); the interior response is tiny but finite
+    wall = Wall((concrete(1.5),))
+    x = np.linspace(0, 0.3, 7)
+    p = iso13786.periodic_profile(wall, 6 * 3600.0, 1.0, 0.0, x)
+    k = (1 + 1j) / iso13786.penetration_depth(1.8, 2400, 1000, 6 * 3600.0)
+    np.testing.assert_allclose(p.temperature, np.exp(-k * x), rtol=1e-9, atol=1e-15)
+    assert np.isfinite(p.q_interior) and 0 < abs(p.q_interior) < 1e-6
+    with pytest.raises(StudyError, match="penetration depths"):
+        iso13786.periodic_profile(Wall((concrete(30.0),)), 3600.0, 1.0, 0.0, [0.0])
+
+
+def test_profile_bad_arguments_and_times():
+    wall = study_wall_3_to_9()
+    with pytest.raises(StudyError, match="depths_m"):
+        iso13786.periodic_profile(wall, DAY, 1.0, 0.0, [-0.01])
+    with pytest.raises(StudyError, match="interface_side"):
+        iso13786.periodic_profile(wall, DAY, 1.0, 0.0, [0.0], interface_side="left")
+    p = iso13786.periodic_profile(wall, DAY, 2.0, 0.0, [0.0, 0.1])
+    t = p.at_times([0.0, DAY / 4])
+    assert t.shape == (2, 2)
+    assert t[0, 0] == pytest.approx(2.0) and t[1, 0] == pytest.approx(0.0, abs=1e-12)
