@@ -8,6 +8,8 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0+unknown"
 
 from .errors import DataError, EngineError, StudyError, WallcalError  # noqa: E402
+from .simulation import SimulationResult, prepare, simulate  # noqa: E402
+from .study import Study, load_study, load_wall  # noqa: E402
 from .wall import Layer, Probe, Wall  # noqa: E402
 
 __all__ = [
@@ -15,8 +17,14 @@ __all__ = [
     "EngineError",
     "Layer",
     "Probe",
+    "SimulationResult",
+    "Study",
     "StudyError",
     "Wall",
     "WallcalError",
     "__version__",
+    "load_study",
+    "load_wall",
+    "prepare",
+    "simulate",
 ]

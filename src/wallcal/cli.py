@@ -17,6 +17,7 @@ from .errors import WallcalError
 #: Modules that add commands (each has ``register(subparsers)``).
 COMMAND_MODULES = (
     "wallcal.commands.simulate",
+    "wallcal.commands.standards",
 )
 
 
@@ -53,6 +54,9 @@ def main(argv: list[str] | None = None) -> int:
         msg = str(exc)
         print(f"wallcal: error: {msg}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into a command that stopped reading (e.g. head)
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         if args.debug:
             raise

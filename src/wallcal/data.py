@@ -130,6 +130,10 @@ def _timestamps(frame: pd.DataFrame, study: Study, path: Path) -> pd.DatetimeInd
         try:
             parsed = pd.to_datetime(text, format="ISO8601", utc=False)
         except (ValueError, TypeError) as exc:
+            if "mixed timezones" in str(exc).lower() or "mixed time" in str(exc).lower():
+                raise DataError(f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
+                                "winter time) or naive and aware timestamps; wallcal needs one local standard "
+                                "time: convert the column to a single offset") from exc
             # find the first bad row for the message
             for i, v in enumerate(text):
                 try:
@@ -227,7 +231,7 @@ def find_gaps(index: pd.DatetimeIndex, values: np.ndarray, start, end) -> list[t
     t = index[ok]
     if len(t) < 2:
         return []
-    secs = np.diff(t.asi8) / 1e9
+    secs = np.asarray((t[1:] - t[:-1]).total_seconds(), dtype=float)
     nominal = float(np.median(secs))
     out = []
     for i in np.flatnonzero(secs > 1.5 * nominal):

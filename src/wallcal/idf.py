@@ -252,8 +252,7 @@ def wall_to_idf_objects(
     parts.append(
         idf_object(
             "Construction",
-            [(cname, "Name")]
-            + [(n, "Outside Layer" if j == 0 else f"Layer {j + 1}") for j, n in enumerate(names)],
+            [(cname, "Name")] + [(n, "Outside Layer" if j == 0 else f"Layer {j + 1}") for j, n in enumerate(names)],
         )
     )
     if len(names) > 10:
@@ -263,9 +262,7 @@ def wall_to_idf_objects(
         )
     if settings:
         parts.append(
-            cfd_settings_object(
-                grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence
-            )
+            cfd_settings_object(grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence)
         )
     return "\n".join(parts)
 

@@ -195,7 +195,7 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     acc = {s.name: (s.accuracy, s.accuracy_relative) for s in study.sensors}
     met = _metrics.table(prep.measured, simulated, acc)
     excluded = {s.name: int(prep.measured[s.name].isna().sum()) for s in study.sensors}
-    summ = summarize(prep.measurements.frame, study.period.start, study.period.end)
+    summ = summarize(_boundary_named(prep.measurements.frame, study), study.period.start, study.period.end)
     info = dict(out.info)
     info.update({
         "engine": engine,
@@ -210,6 +210,15 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     return SimulationResult(study=study, engine=engine, measured=prep.measured.copy(), simulated=simulated,
                             metrics=met, summary=summ, info=info, spikes=prep.measurements.spikes,
                             bridged_gaps=prep.measurements.bridged_gaps)
+
+
+def _boundary_named(frame: pd.DataFrame, study: Study) -> pd.DataFrame:
+    """The frame with its boundary columns named after their data columns (TSe, TSi...)."""
+    names = {}
+    for face, b in (("exterior", study.exterior), ("interior", study.interior)):
+        name = b.column if b.column not in frame.columns else f"{b.column} ({face} boundary)"
+        names[face] = name
+    return frame.rename(columns=names)
 
 
 def simulate(study: Study, engine: str | None = None, *, time_step: float | None = None,

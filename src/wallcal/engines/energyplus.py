@@ -21,9 +21,13 @@ EnergyPlus quirks handled here (numbers in ``docs/energyplus.md``):
 1. CondFD keeps a film of the *maximum* convection coefficient ``h_max``
    (1000 W/(m2K)) between the scheduled other-side temperature and the outer
    node, and the inside face sits behind the zone air through ``h_max`` too.
-   The engine runs EnergyPlus twice: the face fluxes of the first run correct
-   the schedules (``T_sched = TSe + q_e / h_max``, ``T_air = TSi - q_i / h_max``)
-   so that the face nodes of the second run sit at the imposed temperatures.
+   The engine runs EnergyPlus twice: from the first run's next-to-face nodes it
+   computes the mean face flux each step needs with the face node *at* the
+   imposed temperature (half-node balance) and schedules
+   ``T_other = TSe + q_e / h_max`` and ``T_air = TSi - q_i / h_max``, so the face
+   nodes of the second run sit at the imposed values (4e-5 K RMS) with no
+   Crank-Nicolson oscillation. ``film_correction=False`` runs once, as the
+   reference harness did.
 2. The inside surface heat balance uses the zone air temperature of the
    previous timestep: the setpoint schedule is advanced by one step.
 3. Under Crank-Nicolson a scheduled boundary value enters both time levels of
@@ -207,26 +211,28 @@ class EnergyPlusEngine(Engine):
                 te, ti, flux_e, flux_i, (pad_e, pad_i), h_max=h, theta=theta_b, advance=advance
             )
             with tempfile.TemporaryDirectory(prefix="wallcal_eplus_") as tmp:
-                res = _run_once(
-                    inp,
-                    Path(tmp),
-                    exe,
-                    epw,
-                    steps_e,
-                    steps_i,
-                    pads,
-                    steps_per_hour=steps_per_hour,
-                    warmup_days=int(warmup),
-                    h_max=h,
-                    inside_convergence=float(opts["inside_convergence"]),
-                    t_range=(lo, hi),
-                    timeout=float(opts["timeout"]),
-                    other_surfaces_ctf=bool(opts["fast_other_surfaces"]),
-                )
-                if opts["keep_dir"] is not None:
-                    dest = Path(opts["keep_dir"]) / f"pass{p + 1}"
-                    shutil.rmtree(dest, ignore_errors=True)
-                    shutil.copytree(tmp, dest)
+                try:
+                    res = _run_once(
+                        inp,
+                        Path(tmp),
+                        exe,
+                        epw,
+                        steps_e,
+                        steps_i,
+                        pads,
+                        steps_per_hour=steps_per_hour,
+                        warmup_days=int(warmup),
+                        h_max=h,
+                        inside_convergence=float(opts["inside_convergence"]),
+                        t_range=(lo, hi),
+                        timeout=float(opts["timeout"]),
+                        other_surfaces_ctf=bool(opts["fast_other_surfaces"]),
+                    )
+                finally:
+                    if opts["keep_dir"] is not None:
+                        dest = Path(opts["keep_dir"]) / f"pass{p + 1}"
+                        shutil.rmtree(dest, ignore_errors=True)
+                        shutil.copytree(tmp, dest)
             x, ext = res["x"], res["T"]
             q_e, q_i = face_fluxes(inp.wall, x, ext, inp.time_step, inp.scheme)
             temps = ext[1 : 1 + len(te)]
@@ -235,9 +241,7 @@ class EnergyPlusEngine(Engine):
             # half-node balance with the face node at the imposed value and the next node from this pass
             theta = 0.5 if inp.scheme == "cn" else 1.0
             flux_e = half_step_flux(inp.wall.layers[0], te, temps[:, 1], x[1] - x[0], inp.time_step, theta)
-            flux_i = -half_step_flux(
-                inp.wall.layers[-1], ti, temps[:, -2], x[-1] - x[-2], inp.time_step, theta
-            )
+            flux_i = -half_step_flux(inp.wall.layers[-1], ti, temps[:, -2], x[-1] - x[-2], inp.time_step, theta)
             pad_e, pad_i = float(q_e[0]), float(q_i[0])
         info["seconds"] = time.perf_counter() - t_start
         info["node_depths"] = x
@@ -488,11 +492,7 @@ def _run_once(
     except subprocess.TimeoutExpired as exc:
         raise EngineError(f"EnergyPlus did not finish within {timeout:g} s") from exc
     err_text = (tmp / "eplusout.err").read_text(errors="replace") if (tmp / "eplusout.err").exists() else ""
-    severe = [
-        ln.strip()
-        for ln in err_text.splitlines()
-        if "** Severe" in ln or "**  Fatal" in ln or "** Fatal" in ln
-    ]
+    severe = [ln.strip() for ln in err_text.splitlines() if "** Severe" in ln or "**  Fatal" in ln or "** Fatal" in ln]
     if proc.returncode != 0 or severe or not (tmp / "eplusout.csv").exists():
         lines = _error_lines(err_text) or (proc.stderr or proc.stdout or "").strip().splitlines()[-10:]
         raise EngineError(f"EnergyPlus failed (exit code {proc.returncode}):\n" + "\n".join(lines[:40]))
@@ -502,9 +502,7 @@ def _run_once(
     # rows: one per timestep of the run period; grid point k = row steps_per_day + k - 1
     first = steps_per_day - 1
     if temps.shape[0] < first + n + 1:
-        raise EngineError(
-            f"EnergyPlus reported {temps.shape[0]} timesteps, expected at least {first + n + 1}"
-        )
+        raise EngineError(f"EnergyPlus reported {temps.shape[0]} timesteps, expected at least {first + n + 1}")
     lo = first - 1
     hi = min(temps.shape[0], first + n + 2)
     return {"x": x, "T": temps[lo:hi], "offset": 1, "warnings": warnings}
@@ -730,9 +728,7 @@ def build_idf(
             settings=False,
         )
     )
-    o.append(
-        cfd_settings_object(grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence)
-    )
+    o.append(cfd_settings_object(grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence))
     o.append(idf_object("Zone", [("ZONE", "Name")]))
     o.append(
         idf_object(
@@ -923,29 +919,58 @@ def build_idf(
 
 
 # ---------------------------------------------------------------------- results
-def read_node_depths(eio: Path, wall: Wall) -> np.ndarray:
+def read_node_depths(eio: Path, wall: Wall, construction: str = "WALLCAL") -> np.ndarray:
     """CondFD node depths [m] from the exterior face, from the .eio node report.
+
+    EnergyPlus reports a fictitious thickness (0.1 m) for each no-mass layer; the interval
+    between the two nodes bounding such a layer (no-mass layers and contact resistances) is
+    given zero thickness here, so the depths are wallcal's.
+
+    Parameters
+    ----------
+    eio : Path
+        EnergyPlus' ``eplusout.eio``.
+    wall : Wall
+    construction : str
+        Construction name used in the model.
+
+    Returns
+    -------
+    ndarray
+        Node depths [m], non-decreasing (several nodes share a depth around no-mass layers).
 
     Raises
     ------
     EngineError
         When the report is missing or inconsistent with the wall.
     """
-    text = Path(eio).read_text(errors="replace")
-    xs = []
-    for ln in text.splitlines():
+    from ..idf import material_names
+
+    names = material_names(wall, f"{construction}_")
+    resistive = set()
+    k = 0
+    for i, layer in enumerate(wall.layers):
+        if layer.is_massless:
+            resistive.add(names[k].upper())
+        k += 1
+        if layer.contact_resistance and i < len(wall.layers) - 1:
+            resistive.add(names[k].upper())
+            k += 1
+    dist, outward, inward = [], [], []
+    for ln in Path(eio).read_text(errors="replace").splitlines():
         parts = [p.strip() for p in ln.split(",")]
-        if parts and parts[0] == "ConductionFiniteDifference Node" and len(parts) >= 4:
-            if parts[3].upper() != "WALLCAL":
-                continue
-            xs.append(float(parts[2]))
-    if not xs:
+        if len(parts) >= 6 and parts[0] == "ConductionFiniteDifference Node" and parts[3].upper() == construction:
+            dist.append(float(parts[2]))
+            outward.append(parts[4].upper())
+            inward.append(parts[5].upper())
+    if not dist:
         raise EngineError(f"no 'ConductionFiniteDifference Node' lines for the wall in {eio}")
-    x = np.asarray(xs)
-    if abs(x[-1] - wall.thickness) > 1e-6 * max(1.0, wall.thickness) or x[0] != 0.0:
-        raise EngineError(
-            f"EnergyPlus node depths span {x[0]}..{x[-1]} m, the wall is {wall.thickness} m thick"
-        )
+    x = np.zeros(len(dist))
+    for i in range(1, len(dist)):
+        in_resistive = outward[i] == inward[i - 1] and outward[i] in resistive
+        x[i] = x[i - 1] + (0.0 if in_resistive else dist[i] - dist[i - 1])
+    if abs(x[-1] - wall.thickness) > 1e-6 * max(1.0, wall.thickness):
+        raise EngineError(f"EnergyPlus node depths span 0..{x[-1]} m, the wall is {wall.thickness} m thick")
     return x
 
 
@@ -963,9 +988,7 @@ def read_node_temperatures(csv: Path, n_nodes: int) -> np.ndarray:
     return df[cols].to_numpy(dtype=float)
 
 
-def probe_series(
-    x: np.ndarray, temps: np.ndarray, depth: float, side: str | None, thickness: float
-) -> np.ndarray:
+def probe_series(x: np.ndarray, temps: np.ndarray, depth: float, side: str | None, thickness: float) -> np.ndarray:
     """Temperature [degC] at ``depth`` [m], linear between nodes.
 
     Where several nodes share a depth (both faces of a contact or no-mass layer),
@@ -1022,11 +1045,7 @@ def half_step_flux(layer, t_face, t_next, dx: float, dt: float, theta: float) ->
     else:
         lam = layer.conductivity_at(layer.reference_temperature)
     cond = lam * (t_face - t_next) / dx
-    return (
-        layer.volumetric_heat_capacity * dx / 2 * np.diff(t_face) / dt
-        + theta * cond[1:]
-        + (1 - theta) * cond[:-1]
-    )
+    return layer.volumetric_heat_capacity * dx / 2 * np.diff(t_face) / dt + theta * cond[1:] + (1 - theta) * cond[:-1]
 
 
 def face_fluxes(wall: Wall, x: np.ndarray, temps: np.ndarray, dt: float, scheme: str):
