@@ -13,8 +13,8 @@ from wallcal.grid import PropertyArrays
 from wallcal.wall import Layer, Probe, Wall
 
 
-def run(inp, scheme=None):
-    return FDEngine(scheme or inp.scheme).run(inp)
+def run(inp, scheme=None, path="auto"):
+    return FDEngine(scheme or inp.scheme).run(inp, path=path)
 
 
 # ---------------------------------------------------------------------------- steady state
@@ -212,7 +212,7 @@ def test_energy_balance_closes(scheme, ext, intr):
     ue = 5 + 10 * np.sin(2 * np.pi * t / 86400) if ext != "heat_flux" else 20 * np.sin(2 * np.pi * t / 86400)
     ui = 20 + np.sin(2 * np.pi * t / 86400)
     inp = make_input(wall, ue, ui, 60.0, scheme=scheme, ext=ext, intr=intr, h_e=25.0, h_i=7.7)
-    out = run(inp)
+    out = run(inp, path="general")
     assert abs(out.info["energy_residual_J_m2"]) < 1e-9 * out.info["energy_throughput_J_m2"]
 
 
@@ -262,3 +262,37 @@ def test_cn_does_not_ring_with_a_thin_metal_sheet():
     assert out.info["implicit_links"] >= 1
     for p in wall.probes:
         assert np.diff(out.temperatures[p.name]).min() > -1e-6
+
+
+# ---------------------------------------------------------------------------- fast path
+@pytest.mark.parametrize("scheme", ["cn", "implicit"])
+@pytest.mark.parametrize("ext,intr", [("surface_temperature", "surface_temperature"),
+                                      ("air_temperature", "air_temperature"), ("heat_flux", "air_temperature"),
+                                      ("surface_temperature", "heat_flux")])
+def test_modal_fast_path_equals_general_path(scheme, ext, intr):
+    wall = three_layer_wall()
+    wall = wall.replace_layer("brick", contact_resistance=0.05)
+    t = np.arange(2 * 1440 + 1) * 60.0
+    ue = 5 + 10 * np.sin(2 * np.pi * t / 86400) if ext != "heat_flux" else 20 * np.sin(2 * np.pi * t / 86400)
+    ui = 20 + np.sin(2 * np.pi * t / 86400) if intr != "heat_flux" else -3 + np.sin(2 * np.pi * t / 86400)
+    inp = make_input(wall, ue, ui, 60.0, scheme=scheme, ext=ext, intr=intr, h_e=25.0, h_i=7.7, out_every=5)
+    inp = inp.__class__(**{**inp.__dict__, "output_positions": inp.output_positions + 0.4})
+    inp = inp.__class__(**{**inp.__dict__, "output_positions": inp.output_positions[:-1]})
+    prep = FDEngine(scheme).prepare(inp)
+    walls = [wall, wall.replace_layer("wool", conductivity=0.05), wall.replace_probe("P2", depth=0.21)]
+    fast = prep.run_walls(walls, path="modal")
+    slow = prep.run_walls(walls, path="general")
+    assert fast.path == "modal" and slow.path == "general"
+    # the same linear algebra: agreement to round-off (the bound is 1e-9 degC)
+    np.testing.assert_allclose(fast.out, slow.out, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.final_state, slow.final_state, rtol=0, atol=1e-9)
+
+
+def test_auto_path_choice():
+    wall = three_layer_wall()
+    t = np.arange(101) * 60.0
+    inp = make_input(wall, 5 + np.sin(t), np.full(101, 20.0), 60.0)
+    assert run(inp).info["path"] == "modal"
+    nl = wall.replace_layer("wool", conductivity_temperature_coefficient=0.004)
+    inp2 = inp.__class__(**{**inp.__dict__, "wall": nl})
+    assert run(inp2).info["path"] == "general"

@@ -233,23 +233,23 @@ def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]
         are re-evaluated in the kernel).
     """
     nc = props.n_candidates
-    cap = np.zeros((nc, grid.n_nodes))
+    li = grid.link_layer
+    n = grid.link_intervals
+    massive = (li >= 0) & (n > 0)
+    massless = (li >= 0) & (n == 0)
+    contact = li < 0
     g = np.zeros((nc, grid.n_links))
-    for l_idx in range(grid.n_links):
-        li = grid.link_layer[l_idx]
-        if li >= 0:
-            n = grid.link_intervals[l_idx]
-            if n == 0.0:  # no-mass layer
-                g[:, l_idx] = 1.0 / props.thermal_resistance[:, li]
-            else:
-                dx = props.thickness[:, li] / n
-                g[:, l_idx] = props.conductivity[:, li] / dx
-                half = 0.5 * props.volumetric_heat_capacity[:, li] * dx
-                cap[:, l_idx] += half
-                cap[:, l_idx + 1] += half
-        else:
-            ci = grid.link_contact_of[l_idx]
-            g[:, l_idx] = 1.0 / np.maximum(props.contact_resistance[:, ci], MIN_CONTACT_RESISTANCE)
+    half = np.zeros((nc, grid.n_links))
+    lm = li[massive]
+    dx = props.thickness[:, lm] / n[massive]
+    g[:, massive] = props.conductivity[:, lm] / dx
+    half[:, massive] = 0.5 * props.volumetric_heat_capacity[:, lm] * dx
+    g[:, massless] = 1.0 / props.thermal_resistance[:, li[massless]]
+    g[:, contact] = 1.0 / np.maximum(props.contact_resistance[:, grid.link_contact_of[contact]],
+                                     MIN_CONTACT_RESISTANCE)
+    cap = np.zeros((nc, grid.n_nodes))
+    cap[:, :-1] += half  # link l gives half its interval's capacity to nodes l and l + 1
+    cap[:, 1:] += half
     return cap, g
 
 
@@ -271,26 +271,19 @@ def probe_weights(grid: Grid, depths: np.ndarray, sides: list[str | None]) -> tu
         T = (1 - w) T[a] + w T[b]: exact on a node, linear between nodes.
     """
     x = grid.x
-    nc, npr = depths.shape
-    a = np.zeros((nc, npr), dtype=np.int64)
-    b = np.zeros((nc, npr), dtype=np.int64)
-    w = np.zeros((nc, npr))
+    d = np.clip(np.asarray(depths, dtype=float), 0.0, x[-1])
     tol = 1e-12 * max(1.0, x[-1])
-    for p in range(npr):
-        side = sides[p]
-        for c in range(nc):
-            d = min(max(depths[c, p], 0.0), x[-1])
-            hits = np.nonzero(np.abs(x - d) <= tol)[0]
-            if len(hits) >= 1:
-                if len(hits) == 1 or side == "exterior":
-                    a[c, p] = b[c, p] = hits[0]
-                elif side == "interior":
-                    a[c, p] = b[c, p] = hits[-1]
-                else:
-                    a[c, p], b[c, p], w[c, p] = hits[0], hits[-1], 0.5
-                continue
-            j = int(np.searchsorted(x, d, side="right")) - 1
-            j = min(max(j, 0), len(x) - 2)
-            a[c, p], b[c, p] = j, j + 1
-            w[c, p] = (d - x[j]) / (x[j + 1] - x[j])
-    return a, b, w
+    first = np.searchsorted(x, d - tol, side="left")  # first node at or after d
+    last = np.searchsorted(x, d + tol, side="right") - 1  # last node at or before d
+    on_node = first <= last
+    j = np.clip(last, 0, len(x) - 2)
+    a = j.copy()
+    b = j + 1
+    w = (d - x[j]) / np.where(x[j + 1] > x[j], x[j + 1] - x[j], 1.0)
+    side = np.array([{"exterior": 0, "interior": 1}.get(sd, 2) for sd in sides], dtype=np.int64)
+    side = np.broadcast_to(side, d.shape)
+    double = on_node & (last > first)
+    a = np.where(on_node, np.where(double & (side == 1), last, first), a)
+    b = np.where(on_node, np.where(double & (side == 2), last, a), b)
+    w = np.where(on_node, np.where(double & (side == 2), 0.5, 0.0), w)
+    return a.astype(np.int64), b.astype(np.int64), w

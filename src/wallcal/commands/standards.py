@@ -355,9 +355,11 @@ def _figure(path: Path, hours: np.ndarray, res, sensor: str, face: str, title: s
             ax.axvline(res.duration_h - 24, color="0.5", ls=":", lw=1, label="24 h before the end")
         ax.set_xlabel("elapsed time [h]")
         ax.set_ylabel("R (surface to surface) [m2K/W]")
-        finite = res.r_running[np.isfinite(res.r_running)]
-        if finite.size:  # the first hours can be wild; keep the band and the end readable
-            lo, hi = np.percentile(finite, [2, 98])
+        # the first day can be wild (sum of q near 0): scale the axis on the rest of the record
+        late = res.r_running[hours >= min(24.0, 0.25 * res.duration_h)]
+        finite = late[np.isfinite(late)]
+        if finite.size:
+            lo, hi = float(finite.min()), float(finite.max())
             lo, hi = min(lo, 0.9 * r_end), max(hi, 1.1 * r_end)
             ax.set_ylim(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
         ax.set_title(f"{title + ': ' if title else ''}ISO 9869-1 average method ({sensor}, {face} face)\n"

