@@ -72,8 +72,18 @@ def test_compare_fd_engines_table(fd_comparison):
     c = fd_comparison
     assert c.engines == ("fd-cn", "fd-implicit") and not c.skipped
     t = c.table
-    assert list(t.columns[:10]) == ["engine", "signal", "unit", "n", "rmse", "rn_rmse", "cv_rmse_eff", "mbe",
-                                    "nmbe", "cv_rmse_g14"]
+    assert list(t.columns[:10]) == [
+        "engine",
+        "signal",
+        "unit",
+        "n",
+        "rmse",
+        "rn_rmse",
+        "cv_rmse_eff",
+        "mbe",
+        "nmbe",
+        "cv_rmse_g14",
+    ]
     assert len(t) == 2 * 5
     # the long table is each engine's own metrics table
     for name, res in c.results.items():
@@ -222,8 +232,13 @@ def test_exported_idf_runs_in_energyplus(tmp_path):
     out = tmp_path / "wall.idf"
     assert main(["export-idf", str(wall), "--out", str(out), "--inside-convergence", "1e-5"]) == 0
     text = out.read_text()
-    for kind in ("Material,", "Material:NoMass,", "MaterialProperty:VariableThermalConductivity,", "Construction,",
-                 "HeatBalanceSettings:ConductionFiniteDifference,"):
+    for kind in (
+        "Material,",
+        "Material:NoMass,",
+        "MaterialProperty:VariableThermalConductivity,",
+        "Construction,",
+        "HeatBalanceSettings:ConductionFiniteDifference,",
+    ):
         assert kind in text
     # the exported text, verbatim, in the fictitious-zone model; a severe error raises EngineError
     res = run_idf_objects(text, "rich_wall", exterior=0.0, interior=20.0, days=1)

@@ -109,8 +109,9 @@ def test_periodic_regime_matches_transfer_matrix_solution():
     errs = periodic_case(30.0, 1.0, "cn")
     for k in ("P0", "P1", "P2", "P3"):
         assert errs[k] < 0.01, errs
-    # face fluxes within 1 % of their 24-h amplitude (|q_e| ~ 6.6 W/m2 here)
-    assert errs["qe"] < 0.05 and errs["qi"] < 0.01, errs
+    # face fluxes within 0.1 % of the exterior flux amplitude (|q_e| = 95.8 W/m2 through the brick here);
+    # what remains is the O(dx^2) error of the surface half-cell's storage term
+    assert errs["qe"] < 0.1 and errs["qi"] < 0.01, errs
 
 
 def test_periodic_regime_default_grid_is_close():

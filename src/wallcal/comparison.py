@@ -38,8 +38,22 @@ COMPARE_ENGINES = ("fd-cn", "fd-implicit", "energyplus", "energyplus-cn", "energ
 #: Metrics shown in Table IV (rows per sensor), in this order.
 TABLE_IV_METRICS = ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14")
 #: Long-table metric columns (``comparison.csv``).
-LONG_COLUMNS = ("engine", "signal", "unit", "n", "rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14",
-                "mae", "max_abs_error", "accuracy", "within_accuracy")
+LONG_COLUMNS = (
+    "engine",
+    "signal",
+    "unit",
+    "n",
+    "rmse",
+    "rn_rmse",
+    "cv_rmse_eff",
+    "mbe",
+    "nmbe",
+    "cv_rmse_g14",
+    "mae",
+    "max_abs_error",
+    "accuracy",
+    "within_accuracy",
+)
 
 
 @dataclass
@@ -88,11 +102,13 @@ class Comparison:
             MultiIndex (signal, metric) in the study's sensor order.
         """
         long = self.table.melt(id_vars=["engine", "signal"], value_vars=list(metrics), var_name="metric")
-        wide = long.pivot_table(index=["signal", "metric"], columns="engine", values="value", aggfunc="first",
-                                dropna=False)
+        wide = long.pivot_table(
+            index=["signal", "metric"], columns="engine", values="value", aggfunc="first", dropna=False
+        )
         order = [(s, m) for s in self.table["signal"].drop_duplicates() for m in metrics]
-        return wide.reindex(index=pd.MultiIndex.from_tuples(order, names=["signal", "metric"]),
-                            columns=list(self.engines))
+        return wide.reindex(
+            index=pd.MultiIndex.from_tuples(order, names=["signal", "metric"]), columns=list(self.engines)
+        )
 
     def difference_matrix(self, value: str = "rms_difference") -> pd.DataFrame:
         """Engine-to-engine differences per sensor: rows signals, one column per engine pair.
@@ -153,8 +169,15 @@ def _scheme(name: str) -> str:
     return "implicit" if name.endswith("implicit") else "cn"
 
 
-def compare_engines(study: Study, engines, *, node_rule: str | None = None, grid_constant: float | None = None,
-                    time_step: float | None = None, skip_missing: bool = True) -> Comparison:
+def compare_engines(
+    study: Study,
+    engines,
+    *,
+    node_rule: str | None = None,
+    grid_constant: float | None = None,
+    time_step: float | None = None,
+    skip_missing: bool = True,
+) -> Comparison:
     """Run ``study`` with several engines and compare them with the measurements and with each other.
 
     Parameters
@@ -193,8 +216,9 @@ def compare_engines(study: Study, engines, *, node_rule: str | None = None, grid
     names = [str(e).strip() for e in engines if str(e).strip()]
     if not names:
         raise StudyError([f"engines: give at least one of {', '.join(COMPARE_ENGINES)}"])
-    problems = [f"engines: unknown engine {n!r}; {closest(n, COMPARE_ENGINES)}" for n in names
-                if n not in COMPARE_ENGINES]
+    problems = [
+        f"engines: unknown engine {n!r}; {closest(n, COMPARE_ENGINES)}" for n in names if n not in COMPARE_ENGINES
+    ]
     dup = [n for n in dict.fromkeys(names) if names.count(n) > 1]
     if dup:
         problems.append(f"engines: {', '.join(map(repr, dup))} given more than once")
@@ -207,8 +231,14 @@ def compare_engines(study: Study, engines, *, node_rule: str | None = None, grid
     for name in names:
         scheme = _scheme(name)
         if scheme not in preps:
-            preps[scheme] = prepare(study, "fd-implicit" if scheme == "implicit" else "fd-cn", time_step=time_step,
-                                    grid_constant=grid_constant, node_rule=node_rule, measurements=meas)
+            preps[scheme] = prepare(
+                study,
+                "fd-implicit" if scheme == "implicit" else "fd-cn",
+                time_step=time_step,
+                grid_constant=grid_constant,
+                node_rule=node_rule,
+                measurements=meas,
+            )
         prep = preps[scheme]
         try:
             eng = _engine_for(name)
@@ -222,12 +252,10 @@ def compare_engines(study: Study, engines, *, node_rule: str | None = None, grid
         seconds[name] = time.perf_counter() - t
         out.info.setdefault("seconds", seconds[name])
         res = result_from_output(prep, out, name)
-        res.info["node_rule"] = "energyplus (EnergyPlus' own)" if name.startswith("energyplus") \
-            else prep.inp.node_rule
+        res.info["node_rule"] = "energyplus (EnergyPlus' own)" if name.startswith("energyplus") else prep.inp.node_rule
         results[name] = res
     if not results:
-        raise OptionalDependencyError(
-            "no engine could run: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
+        raise OptionalDependencyError("no engine could run: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
 
     units = {s.name: (s.unit if s.quantity == "temperature" else "W/m2") for s in study.sensors}
     rows = []
@@ -246,14 +274,31 @@ def compare_engines(study: Study, engines, *, node_rule: str | None = None, grid
             e = (results[a].simulated[sig] - results[b].simulated[sig])[ok].to_numpy(dtype=float)
             e = e[np.isfinite(e)]
             nan = float("nan")
-            diff_rows.append({
-                "signal": sig, "unit": units[sig], "engine_a": a, "engine_b": b, "n": int(e.size),
-                "rms_difference": float(np.sqrt(np.mean(e**2))) if e.size else nan,
-                "max_abs_difference": float(np.max(np.abs(e))) if e.size else nan,
-                "mean_difference": float(np.mean(e)) if e.size else nan,
-            })
-    differences = pd.DataFrame(diff_rows, columns=["signal", "unit", "engine_a", "engine_b", "n", "rms_difference",
-                                                   "max_abs_difference", "mean_difference"])
+            diff_rows.append(
+                {
+                    "signal": sig,
+                    "unit": units[sig],
+                    "engine_a": a,
+                    "engine_b": b,
+                    "n": int(e.size),
+                    "rms_difference": float(np.sqrt(np.mean(e**2))) if e.size else nan,
+                    "max_abs_difference": float(np.max(np.abs(e))) if e.size else nan,
+                    "mean_difference": float(np.mean(e)) if e.size else nan,
+                }
+            )
+    differences = pd.DataFrame(
+        diff_rows,
+        columns=[
+            "signal",
+            "unit",
+            "engine_a",
+            "engine_b",
+            "n",
+            "rms_difference",
+            "max_abs_difference",
+            "mean_difference",
+        ],
+    )
     any_prep = next(iter(preps.values()))
     settings = {
         "time_step_s": any_prep.inp.time_step,
@@ -262,8 +307,15 @@ def compare_engines(study: Study, engines, *, node_rule: str | None = None, grid
         "seconds": seconds,
         "nodes": {n: r.info.get("nodes", r.info.get("n_nodes")) for n, r in results.items()},
     }
-    return Comparison(study=study, engines=tuple(ran), results=results, table=table, differences=differences,
-                      skipped=skipped, settings=settings)
+    return Comparison(
+        study=study,
+        engines=tuple(ran),
+        results=results,
+        table=table,
+        differences=differences,
+        skipped=skipped,
+        settings=settings,
+    )
 
 
 def _unit_label(unit: str) -> str:
@@ -323,8 +375,11 @@ def plot_comparison(comparison: Comparison, path: str | Path) -> Path:
     fig.autofmt_xdate()
     s = comparison.settings
     title = comparison.study.name or "study"
-    fig.suptitle(f"{title}: measured vs engines (dt = {s['time_step_s']:g} s, C = {s['grid_constant']:g}, "
-                 f"fd node rule {s['node_rule_fd']})", fontsize=10)
+    fig.suptitle(
+        f"{title}: measured vs engines (dt = {s['time_step_s']:g} s, C = {s['grid_constant']:g}, "
+        f"fd node rule {s['node_rule_fd']})",
+        fontsize=10,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

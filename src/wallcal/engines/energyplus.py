@@ -591,8 +591,10 @@ def run_idf_objects(
         nodes = []
         for ln in (tmp / "eplusout.eio").read_text(errors="replace").splitlines():
             parts = [p.strip() for p in ln.split(",")]
-            if len(parts) >= 6 and parts[0] == "ConductionFiniteDifference Node" and parts[3].upper() == (
-                construction.upper()
+            if (
+                len(parts) >= 6
+                and parts[0] == "ConductionFiniteDifference Node"
+                and parts[3].upper() == construction.upper()
             ):
                 nodes.append(ln.strip())
         import pandas as pd
@@ -838,9 +840,7 @@ def build_idf(
                 settings=False,
             )
         )
-        o.append(
-            cfd_settings_object(grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence)
-        )
+        o.append(cfd_settings_object(grid_constant=grid_constant, scheme=scheme, inside_convergence=inside_convergence))
     else:
         o.append(wall_objects)
     o.append(idf_object("Zone", [("ZONE", "Name")]))

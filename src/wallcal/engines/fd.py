@@ -121,7 +121,9 @@ class PreparedFD:
         self.out_w = np.clip(pos - step, 0.0, 1.0)
         self.probe_names = tuple(inp.probes)
         self.probe_sides = [self.wall.probe(p).side for p in self.probe_names]
-        # conductivity laws per link (constant over candidates except through g_ref)
+        # conductivity laws per link (constant over candidates except through g_ref); layers whose
+        # temperature coefficient is a calibration parameter use the exponential law even at f = 0
+        self.exponential_layers = frozenset(inp.options.get("exponential_layers", ()))
         self._laws()
 
     # ------------------------------------------------------------------ setup
@@ -149,7 +151,7 @@ class PreparedFD:
                     tabs_v.extend(tab[:, 1] / ref)
                 kind[lnk] = LAMBDA_TABLE
                 tab_start[lnk], tab_len[lnk] = table_of_layer[li]
-            elif layer.conductivity_temperature_coefficient != 0.0:
+            elif layer.conductivity_temperature_coefficient != 0.0 or li in self.exponential_layers:
                 kind[lnk] = LAMBDA_EXPONENTIAL
             else:
                 kind[lnk] = LAMBDA_CONSTANT
@@ -340,8 +342,11 @@ class PreparedFD:
         else:
             t0 = np.ascontiguousarray(np.asarray(initial_state, dtype=float)[:, j0:j0 + m])
         cap_u = np.ascontiguousarray(cap[:, j0:j0 + m])
+        smooth = np.zeros(nq, dtype=np.bool_)
+        smooth[qe] = bt[0] != kernels.FLUX
+        smooth[qi] = bt[1] != kernels.FLUX
         out, tend_u = modal.modal_batch(kd, ko, cap_u, p, self.theta, self.dt, self._modal_steps(), self.ue,
-                                        self.ui, self.out_step, self.out_w, H, Dp, Dd, t0)
+                                        self.ui, self.out_step, self.out_w, H, Dp, Dd, smooth, t0)
         tend = np.zeros((nc, n_nodes))
         tend[:, j0:j0 + m] = tend_u
         if bt[0] == kernels.DIRICHLET:

@@ -200,31 +200,26 @@ def _steady(cap, g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, n
 
 
 @njit(cache=True)
-def _outputs(Tfull, n, cap, g, bc_type, bc_h, ue, ui, dt, pa, pb, pw, out_vals):
-    """Probe temperatures then exterior and interior face fluxes at grid time n."""
-    n_nodes = Tfull.shape[0]
-    n_pr = pa.shape[0]
-    for k in range(n_pr):
-        out_vals[k] = (1.0 - pw[k]) * Tfull[pa[k]] + pw[k] * Tfull[pb[k]]
-    n_last = ue.shape[0] - 1
-    lo = max(n - 1, 0)
-    hi = min(n + 1, n_last)
-    # exterior face flux, positive into the wall
-    if bc_type[0] == 0:
-        dTdt = (ue[hi] - ue[lo]) / ((hi - lo) * dt)
-        out_vals[n_pr] = g[0] * (Tfull[0] - Tfull[1]) + cap[0] * dTdt
-    elif bc_type[0] == 1:
-        out_vals[n_pr] = bc_h[0] * (ue[n] - Tfull[0])
-    else:
-        out_vals[n_pr] = ue[n]
-    # interior face flux, positive towards the interior (into the room)
-    if bc_type[1] == 0:
-        dTdt = (ui[hi] - ui[lo]) / ((hi - lo) * dt)
-        out_vals[n_pr + 1] = g[n_nodes - 2] * (Tfull[n_nodes - 2] - Tfull[n_nodes - 1]) - cap[n_nodes - 1] * dTdt
-    elif bc_type[1] == 1:
-        out_vals[n_pr + 1] = bc_h[1] * (Tfull[n_nodes - 1] - ui[n])
-    else:
-        out_vals[n_pr + 1] = ui[n]
+def _probes(Tfull, pa, pb, pw, dst):
+    for k in range(pa.shape[0]):
+        dst[k] = (1.0 - pw[k]) * Tfull[pa[k]] + pw[k] * Tfull[pb[k]]
+
+
+@njit(cache=True)
+def _face_flux(F, j, n_steps, u, is_flux_bc):
+    """Instantaneous face flux at grid time j from the step-average fluxes F[j] = F^{j+1/2} (ring of 4).
+
+    q^j = (F^{j-1/2} + F^{j+1/2}) / 2, one-sided at the ends: the energy-consistent face flux of
+    the scheme (the surface half-node balance averaged over the two steps around t_j). A
+    heat-flux boundary reports its imposed value.
+    """
+    if is_flux_bc:
+        return u[j]
+    if j == 0:
+        return F[0]
+    if j >= n_steps:
+        return F[(n_steps - 1) % 4]
+    return 0.5 * (F[(j - 1) % 4] + F[j % 4])
 
 
 @njit(cache=True)
@@ -249,9 +244,6 @@ def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab
     T = np.zeros(n_nodes)
     Tprev = np.zeros(n_nodes)
     Tlin = np.zeros(n_nodes)
-    n_out_q = pa.shape[0] + 2
-    y0 = np.zeros(n_out_q)
-    y1 = np.zeros(n_out_q)
 
     if Tinit.shape[0] == n_nodes:
         for j in range(n_nodes):
@@ -278,11 +270,17 @@ def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab
     e_in = 0.0
     e_out = 0.0
     n_out = out_step.shape[0]
+    n_pr = pa.shape[0]
+    # rings of the last four grid times: probe values P[j % 4] and step fluxes F[j % 4] = F^{j+1/2}
+    P = np.zeros((4, n_pr))
+    Fe = np.zeros(4)
+    Fi = np.zeros(4)
+    flux_e = bc_type[0] == 2
+    flux_i = bc_type[1] == 2
+    _probes(T, pa, pb, pw, P[0])
     k_out = 0
-    # outputs that fall exactly on grid point 0
     while k_out < n_out and out_step[k_out] < 0:
         k_out += 1
-    _outputs(T, 0, cap, g, bc_type, bc_h, ue, ui, dt, pa, pb, pw, y0)
     for n in range(n_steps):
         if nonlinear and m > 0:
             # conductances at the extrapolated mid-step temperature (second order for CN)
@@ -310,39 +308,51 @@ def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab
             T[0] = ue[n + 1]
         if bc_type[1] == 0:
             T[n_nodes - 1] = ui[n + 1]
-        # energy entering through the exterior face and leaving through the interior face
+        # step-average face fluxes F^{n+1/2} (the scheme's own, so energy is conserved exactly)
         if bc_type[0] == 0:
             th = theta[0]
-            e_in += dt * g[0] * (th * (T[0] - T[1]) + (1.0 - th) * (Tprev[0] - Tprev[1]))
-            e_in += cap[0] * (T[0] - Tprev[0])
+            fe = g[0] * (th * (T[0] - T[1]) + (1.0 - th) * (Tprev[0] - Tprev[1])) + cap[0] * (T[0] - Tprev[0]) / dt
         elif bc_type[0] == 1:
             th = bc_theta[0]
-            e_in += dt * bc_h[0] * (th * (ue[n + 1] - T[0]) + (1.0 - th) * (ue[n] - Tprev[0]))
+            fe = bc_h[0] * (th * (ue[n + 1] - T[0]) + (1.0 - th) * (ue[n] - Tprev[0]))
         else:
-            e_in += dt * (bc_theta[0] * ue[n + 1] + (1.0 - bc_theta[0]) * ue[n])
+            fe = bc_theta[0] * ue[n + 1] + (1.0 - bc_theta[0]) * ue[n]
         if bc_type[1] == 0:
             lk = n_nodes - 2
             th = theta[lk]
-            e_out += dt * g[lk] * (th * (T[lk] - T[lk + 1]) + (1.0 - th) * (Tprev[lk] - Tprev[lk + 1]))
-            e_out -= cap[n_nodes - 1] * (T[n_nodes - 1] - Tprev[n_nodes - 1])
+            fi = g[lk] * (th * (T[lk] - T[lk + 1]) + (1.0 - th) * (Tprev[lk] - Tprev[lk + 1]))
+            fi -= cap[n_nodes - 1] * (T[n_nodes - 1] - Tprev[n_nodes - 1]) / dt
         elif bc_type[1] == 1:
             th = bc_theta[1]
-            e_out += dt * bc_h[1] * (th * (T[n_nodes - 1] - ui[n + 1])
-                                     + (1.0 - th) * (Tprev[n_nodes - 1] - ui[n]))
+            fi = bc_h[1] * (th * (T[n_nodes - 1] - ui[n + 1]) + (1.0 - th) * (Tprev[n_nodes - 1] - ui[n]))
         else:
-            e_out += dt * (bc_theta[1] * ui[n + 1] + (1.0 - bc_theta[1]) * ui[n])
-        # outputs between grid n and n + 1
-        if k_out < n_out and out_step[k_out] == n:
-            _outputs(T, n + 1, cap, g, bc_type, bc_h, ue, ui, dt, pa, pb, pw, y1)
-            while k_out < n_out and out_step[k_out] == n:
-                w = out_w[k_out]
-                for q in range(n_out_q):
-                    out[q, k_out] = (1.0 - w) * y0[q] + w * y1[q]
-                k_out += 1
-            for q in range(n_out_q):
-                y0[q] = y1[q]
-        elif k_out < n_out and out_step[k_out] == n + 1:
-            _outputs(T, n + 1, cap, g, bc_type, bc_h, ue, ui, dt, pa, pb, pw, y0)
+            fi = bc_theta[1] * ui[n + 1] + (1.0 - bc_theta[1]) * ui[n]
+        e_in += dt * fe
+        e_out += dt * fi
+        Fe[n % 4] = fe
+        Fi[n % 4] = fi
+        _probes(T, pa, pb, pw, P[(n + 1) % 4])
+        # outputs between grid nk and nk + 1 are complete once F^{nk+3/2} is known (nk = n - 1)
+        while k_out < n_out and out_step[k_out] <= n - 1:
+            nk = out_step[k_out]
+            w = out_w[k_out]
+            for q in range(n_pr):
+                out[q, k_out] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
+            out[n_pr, k_out] = ((1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e)
+                                + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e))
+            out[n_pr + 1, k_out] = ((1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i)
+                                    + w * _face_flux(Fi, nk + 1, n_steps, ui, flux_i))
+            k_out += 1
+    while k_out < n_out:  # outputs in the last step
+        nk = out_step[k_out]
+        w = out_w[k_out]
+        for q in range(n_pr):
+            out[q, k_out] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
+        out[n_pr, k_out] = ((1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e)
+                            + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e))
+        out[n_pr + 1, k_out] = ((1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i)
+                                + w * _face_flux(Fi, nk + 1, n_steps, ui, flux_i))
+        k_out += 1
     e_end = 0.0
     for j in range(n_nodes):
         e_end += cap[j] * T[j]

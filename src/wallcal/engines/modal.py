@@ -28,7 +28,7 @@ from numba import njit, prange
 
 
 @njit(cache=True)
-def _modal_one(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, Dd, out, t0):
+def _modal_one(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, Dd, smooth, out, t0):
     """One candidate.
 
     kd, ko : diagonal and off-diagonal of K over the m unknowns
@@ -38,6 +38,7 @@ def _modal_one(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, D
     H : (n_q, m) output rows over unknown node temperatures
     Dp : (n_q, 2) direct coefficients of u^n in the outputs
     Dd : (n_q, 2) coefficients of the central difference (u^{n+1} - u^{n-1}) / (2 dt)
+    smooth : (n_q,) bool, rows that are face fluxes averaged over the two steps around each time
     t0 : (m,) initial unknown temperatures, or shape (0,) for the steady state of the first inputs
     """
     m = kd.shape[0]
@@ -85,7 +86,7 @@ def _modal_one(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, D
             for i in range(m):
                 acc += H[q, i] * V[i, k]
             G[q, k] = acc
-    _recur(mu, r0, r1, z, s, ue, ui, dt, out_step, out_w, G, Dp, Dd, out)
+    _recur(mu, r0, r1, z, s, ue, ui, dt, theta, out_step, out_w, G, Dp, Dd, smooth, out)
     # final unknown temperatures
     tend = np.zeros(m)
     for i in range(m):
@@ -97,62 +98,111 @@ def _modal_one(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, D
 
 
 @njit(cache=True)
-def _direct_at(n, Dp, Dd, ue, ui, dt, y):
-    """Output terms that depend on the boundary inputs only, at grid time n."""
-    n_last = ue.shape[0] - 1
-    lo = max(n - 1, 0)
-    hi = min(n + 1, n_last)
-    inv = 1.0 / ((hi - lo) * dt)
-    de = (ue[hi] - ue[lo]) * inv
-    di = (ui[hi] - ui[lo]) * inv
-    for q in range(Dp.shape[0]):
-        y[q] = Dp[q, 0] * ue[n] + Dp[q, 1] * ui[n] + Dd[q, 0] * de + Dd[q, 1] * di
+def _smooth_index(j, n_steps, theta):
+    """Weights (w_prev, w_here, w_next) of the energy-consistent face flux at grid time j.
+
+    q^j = (F^{j-1/2} + F^{j+1/2}) / 2 with F^{n+1/2} = theta L^{n+1} + (1 - theta) L^n (one-sided
+    at the ends), so q^j = w_prev L^{j-1} + w_here L^j + w_next L^{j+1} for any quantity L linear in
+    the state.
+    """
+    if j == 0:
+        return 0.0, 1.0 - theta, theta
+    if j >= n_steps:
+        return 1.0 - theta, theta, 0.0
+    return 0.5 * (1.0 - theta), 0.5, 0.5 * theta
+
+
+@njit(cache=True)
+def _finalize(k, nk, w, ring, n_steps, theta, ue, ui, dt, Dp, Dd, smooth, Zp, Zf, direct):
+    """Store the modal states and direct terms of output k (between grid nk and nk + 1)."""
+    m = ring.shape[1]
+    n_q = Dp.shape[0]
+    for k2 in range(m):
+        Zp[k, k2] = (1.0 - w) * ring[nk % 4, k2] + w * ring[(nk + 1) % 4, k2]
+    for q in range(n_q):
+        direct[k, q] = 0.0
+    for jj in range(2):
+        j = nk + jj
+        wt = (1.0 - w) if jj == 0 else w
+        if wt == 0.0:
+            continue
+        a, b, c = _smooth_index(j, n_steps, theta)
+        jm = max(j - 1, 0)
+        jp = min(j + 1, n_steps)
+        for k2 in range(m):
+            v = b * ring[j % 4, k2]
+            if a != 0.0:
+                v += a * ring[jm % 4, k2]
+            if c != 0.0:
+                v += c * ring[jp % 4, k2]
+            if jj == 0:
+                Zf[k, k2] = wt * v
+            else:
+                Zf[k, k2] += wt * v
+        ue_s = a * ue[jm] + b * ue[j] + c * ue[jp]
+        ui_s = a * ui[jm] + b * ui[j] + c * ui[jp]
+        lo = max(j - 1, 0)
+        hi = min(j + 1, n_steps)
+        inv = 1.0 / ((hi - lo) * dt)
+        de = (ue[hi] - ue[lo]) * inv
+        di = (ui[hi] - ui[lo]) * inv
+        for q in range(n_q):
+            if smooth[q]:
+                direct[k, q] += wt * (Dp[q, 0] * ue_s + Dp[q, 1] * ui_s + Dd[q, 0] * de + Dd[q, 1] * di)
+            else:
+                direct[k, q] += wt * (Dp[q, 0] * ue[j] + Dp[q, 1] * ui[j])
+    if w == 0.0:
+        for k2 in range(m):
+            Zf[k, k2] = Zf[k, k2]
 
 
 @njit(cache=True, fastmath=True)
-def _recur(mu, r0, r1, z, s, ue, ui, dt, out_step, out_w, G, Dp, Dd, out):
+def _recur(mu, r0, r1, z, s, ue, ui, dt, theta, out_step, out_w, G, Dp, Dd, smooth, out):
     """The modal recursion over all steps; outputs formed only at the requested times.
 
-    The modal state is interpolated to each output time and stored (memory: outputs x
-    modes, independent of the number of steps); the outputs are then one matrix
-    product. fastmath lets the mode loop use SIMD (the modes are independent).
+    The last four modal states are kept in a ring; each output's state (and, for face
+    fluxes, the energy-consistent two-step average) is stored, so memory is outputs x modes,
+    independent of the number of steps. The outputs are then one matrix product. fastmath
+    lets the mode loop use SIMD (the modes are independent).
     """
     m = z.shape[0]
     n_q = G.shape[0]
     n_steps = s.shape[0]
     n_out = out_step.shape[0]
-    Z = np.zeros((n_out, m))
-    zprev = np.zeros(m)
+    ring = np.zeros((4, m))
+    for k in range(m):
+        ring[0, k] = z[k]
+    Zp = np.zeros((n_out, m))
+    Zf = np.zeros((n_out, m))
+    direct = np.zeros((n_out, n_q))
     k_out = 0
     for n in range(n_steps):
-        hit = k_out < n_out and out_step[k_out] == n
-        if hit:
-            for k in range(m):
-                zprev[k] = z[k]
+        a = n % 4
+        b = (n + 1) % 4
         s0 = s[n, 0]
         s1 = s[n, 1]
         for k in range(m):
-            z[k] = mu[k] * z[k] + r0[k] * s0 + r1[k] * s1
-        if hit:
-            while k_out < n_out and out_step[k_out] == n:
-                w = out_w[k_out]
-                for k in range(m):
-                    Z[k_out, k] = (1.0 - w) * zprev[k] + w * z[k]
-                k_out += 1
-    Y = Z @ G.T
-    d0 = np.zeros(n_q)
-    d1 = np.zeros(n_q)
+            ring[b, k] = mu[k] * ring[a, k] + r0[k] * s0 + r1[k] * s1
+        # an output between grid nk and nk + 1 is complete once the state at nk + 2 is known
+        while k_out < n_out and out_step[k_out] <= n - 1:
+            _finalize(k_out, out_step[k_out], out_w[k_out], ring, n_steps, theta, ue, ui, dt, Dp, Dd, smooth,
+                      Zp, Zf, direct)
+            k_out += 1
+    while k_out < n_out:
+        _finalize(k_out, out_step[k_out], out_w[k_out], ring, n_steps, theta, ue, ui, dt, Dp, Dd, smooth,
+                  Zp, Zf, direct)
+        k_out += 1
+    for k in range(m):
+        z[k] = ring[n_steps % 4, k]
+    Yp = Zp @ G.T
+    Yf = Zf @ G.T
     for j in range(n_out):
-        n = out_step[j]
-        w = out_w[j]
-        _direct_at(n, Dp, Dd, ue, ui, dt, d0)
-        _direct_at(n + 1, Dp, Dd, ue, ui, dt, d1)
         for q in range(n_q):
-            out[q, j] = Y[j, q] + (1.0 - w) * d0[q] + w * d1[q]
+            out[q, j] = (Yf[j, q] if smooth[q] else Yp[j, q]) + direct[j, q]
 
 
 @njit(parallel=True, cache=True)
-def modal_batch(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, Dd, t0):
+def modal_batch(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, Dd, smooth, t0):
     """Run every candidate through its modal recursion (see module docstring).
 
     Shapes: kd, cap_u, t0 (c, m); ko (c, m); p (c, m, 2); H (c, q, m); Dp, Dd (c, q, 2);
@@ -163,5 +213,5 @@ def modal_batch(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, 
     tend = np.zeros(kd.shape)
     for c in prange(nc):
         tend[c] = _modal_one(kd[c], ko[c], cap_u[c], p[c], theta, dt, s, ue, ui, out_step, out_w, H[c], Dp[c],
-                             Dd[c], out[c], t0[c])
+                             Dd[c], smooth, out[c], t0[c])
     return out, tend

@@ -1,0 +1,419 @@
+"""Optimisation algorithms over the unit box [0, 1]^n, each evaluating whole batches.
+
+Every algorithm receives ``f(U) -> objectives`` (U: candidates x parameters, in
+unit coordinates) and a :class:`Recorder` that keeps the best point, the history
+and the checkpoints. ``pso-hj`` is wallcal's own hybrid (after GenOpt's
+GPSPSOCCHJ): a particle swarm with constriction coefficient on a mesh, then a
+Hooke-Jeeves generalized pattern search from the best point, then (by default)
+a bounded least-squares polish whose Jacobian columns are evaluated as one
+batch. The others come from well-kept libraries (scipy, cma).
+
+Defaults of ``pso-hj`` (``[calibration.settings]``):
+
+==========================  =======  ===============================================================
+setting                     default  meaning
+==========================  =======  ===============================================================
+particles                   16       swarm size (GenOpt suggests 10-30)
+generations                 20       swarm generations
+cognitive                   2.8      c1, attraction to the particle's own best (GenOpt default)
+social                      1.3      c2, attraction to the neighbourhood best (GenOpt default)
+constriction_gain           0.5      kappa in Clerc's constriction chi = 2 kappa / |2 - phi - sqrt(phi^2 - 4 phi)|
+max_velocity                0.5      velocity limit, fraction of each parameter's range
+topology                    "vonneumann"  neighbourhood: von Neumann lattice, or "gbest"
+mesh_divisions              64       the swarm evaluates points of a mesh with range/64 spacing
+hj_initial_step             0.0625   Hooke-Jeeves initial step, fraction of the range
+mesh_divider                2        step reduction factor
+step_reductions             12       Hooke-Jeeves stops after this many step reductions
+polish                      true     finish with a bounded least-squares polish (squared-error objectives)
+polish_max_evaluations      60       Jacobian batches allowed in the polish (each n + 1 simulations)
+==========================  =======  ===============================================================
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import StudyError
+
+PSO_HJ_DEFAULTS = {
+    "particles": 16,
+    "generations": 20,
+    "cognitive": 2.8,
+    "social": 1.3,
+    "constriction_gain": 0.5,
+    "max_velocity": 0.5,
+    "topology": "vonneumann",
+    "mesh_divisions": 64,
+    "hj_initial_step": 0.0625,
+    "mesh_divider": 2,
+    "step_reductions": 12,
+    "polish": True,
+    "polish_max_evaluations": 60,
+}
+DE_DEFAULTS = {"popsize": 10, "maxiter": 60, "tol": 1e-8, "mutation": [0.5, 1.0], "recombination": 0.7}
+NM_DEFAULTS = {"maxfev": 3000, "xatol": 1e-6, "fatol": 1e-8}
+CMA_DEFAULTS = {"sigma0": 0.25, "maxfevals": 4000, "popsize": 0}
+LS_DEFAULTS = {"max_nfev": 100, "diff_step": 1e-6}
+
+
+def settings_for(algorithm: str, user: dict) -> dict:
+    """The algorithm's settings: documented defaults updated by the user's, unknown names rejected."""
+    defaults = {"pso-hj": PSO_HJ_DEFAULTS, "differential-evolution": DE_DEFAULTS, "nelder-mead": NM_DEFAULTS,
+                "cma-es": CMA_DEFAULTS, "least-squares": LS_DEFAULTS}[algorithm]
+    unknown = [k for k in user if k not in defaults]
+    if unknown:
+        from ..errors import closest
+
+        raise StudyError([f"calibration.settings.{k}: unknown setting for {algorithm}; {closest(k, defaults)}"
+                          for k in unknown])
+    out = dict(defaults)
+    out.update(user)
+    return out
+
+
+# ============================================================================ progress and checkpoints
+class Progress:
+    """A one-line progress display on stderr (rewritten in place on a terminal)."""
+
+    def __init__(self, label: str, enabled: bool = True, stream=None):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.last = 0.0
+
+    def update(self, text: str, force: bool = False):
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if self.tty:
+            self.stream.write(f"\r{self.label}: {text}\033[K")
+            self.stream.flush()
+        elif force or now - self.last > 2.0:
+            self.stream.write(f"{self.label}: {text}\n")
+            self.stream.flush()
+            self.last = now
+
+    def close(self, text: str | None = None):
+        if not self.enabled:
+            return
+        if text:
+            self.update(text, force=True)
+        if self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+@dataclass
+class Recorder:
+    """Best point, history and checkpoints of one optimisation run.
+
+    ``history`` rows: (evaluations, seconds, best objective).
+    """
+
+    f: callable
+    n: int
+    progress: Progress | None = None
+    checkpoint: Path | None = None
+    meta: dict = field(default_factory=dict)
+    best_u: np.ndarray | None = None
+    best_f: float = math.inf
+    evaluations: int = 0
+    history: list = field(default_factory=list)
+    t0: float = field(default_factory=time.perf_counter)
+    seconds_before: float = 0.0
+    phase: str = ""
+
+    def __call__(self, U) -> np.ndarray:
+        U = np.clip(np.atleast_2d(np.asarray(U, dtype=float)), 0.0, 1.0)
+        vals = np.asarray(self.f(U), dtype=float)
+        self.evaluations += len(U)
+        k = int(np.argmin(vals))
+        if vals[k] < self.best_f:
+            self.best_f = float(vals[k])
+            self.best_u = U[k].copy()
+        self.history.append((self.evaluations, self.elapsed, self.best_f))
+        if self.progress:
+            self.progress.update(f"{self.phase} evaluations {self.evaluations}, best {self.best_f:.6g}")
+        return vals
+
+    @property
+    def elapsed(self) -> float:
+        return self.seconds_before + time.perf_counter() - self.t0
+
+    def save(self, state: dict | None = None):
+        """Write the checkpoint atomically (best so far, history, algorithm state)."""
+        if self.checkpoint is None:
+            return
+        data = {
+            **self.meta,
+            "best_u": None if self.best_u is None else self.best_u.tolist(),
+            "best_f": self.best_f,
+            "evaluations": self.evaluations,
+            "seconds": self.elapsed,
+            "history": self.history,
+            "phase": self.phase,
+            "state": state,
+        }
+        tmp = self.checkpoint.with_name(self.checkpoint.name + ".tmp")
+        tmp.write_text(json.dumps(data))
+        os.replace(tmp, self.checkpoint)
+
+    def restore(self, data: dict):
+        self.best_u = None if data.get("best_u") is None else np.array(data["best_u"])
+        self.best_f = float(data.get("best_f", math.inf))
+        self.evaluations = int(data.get("evaluations", 0))
+        self.history = [tuple(h) for h in data.get("history", [])]
+        self.seconds_before = float(data.get("seconds", 0.0))
+
+
+# ============================================================================ pso-hj
+def _neighbours(n_particles: int, topology: str) -> list[np.ndarray]:
+    if topology == "gbest":
+        return [np.arange(n_particles)] * n_particles
+    cols = int(math.ceil(math.sqrt(n_particles)))
+    rows = int(math.ceil(n_particles / cols))
+    out = []
+    for i in range(n_particles):
+        r, c = divmod(i, cols)
+        nb = {i}
+        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            j = ((r + dr) % rows) * cols + (c + dc) % cols
+            if j < n_particles:
+                nb.add(j)
+        out.append(np.array(sorted(nb)))
+    return out
+
+
+class _Cache:
+    """Objective values of mesh points already evaluated (keys: rounded unit coordinates)."""
+
+    def __init__(self, rec: Recorder, resolution: float):
+        self.rec = rec
+        self.res = resolution
+        self.values: dict[tuple, float] = {}
+
+    def key(self, u):
+        return tuple(np.round(np.asarray(u) / self.res).astype(np.int64).tolist())
+
+    def __call__(self, U) -> np.ndarray:
+        U = np.atleast_2d(U)
+        keys = [self.key(u) for u in U]
+        todo = []
+        seen = set()
+        for i, k in enumerate(keys):
+            if k not in self.values and k not in seen:
+                todo.append(i)
+                seen.add(k)
+        if todo:
+            vals = self.rec(U[todo])
+            for i, v in zip(todo, vals, strict=True):
+                self.values[keys[i]] = float(v)
+        return np.array([self.values[k] for k in keys])
+
+
+def _reflect(x, v):
+    over = x > 1.0
+    under = x < 0.0
+    x = np.where(over, 2.0 - x, np.where(under, -x, x))
+    v = np.where(over | under, -v, v)
+    return np.clip(x, 0.0, 1.0), v
+
+
+def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, residuals=None,
+           state: dict | None = None) -> None:
+    """Particle swarm (constriction, mesh) + Hooke-Jeeves pattern search + least-squares polish.
+
+    ``state`` (from a checkpoint) resumes where the run stopped.
+    """
+    s = settings
+    rng = np.random.default_rng(seed)
+    h_mesh = 1.0 / float(s["mesh_divisions"])
+    finest = float(s["hj_initial_step"]) / float(s["mesh_divider"]) ** int(s["step_reductions"])
+    cache = _Cache(rec, min(h_mesh, finest) / 4)
+    npart = int(s["particles"])
+    phi = float(s["cognitive"]) + float(s["social"])
+    chi = 2 * float(s["constriction_gain"]) / abs(2 - phi - math.sqrt(max(phi * phi - 4 * phi, 0.0))) \
+        if phi > 4 else float(s["constriction_gain"])
+    vmax = float(s["max_velocity"])
+    nbrs = _neighbours(npart, str(s["topology"]))
+
+    def on_mesh(x):
+        return np.clip(np.round(x / h_mesh) * h_mesh, 0.0, 1.0)
+
+    st = state or {}
+    if st.get("phase", "pso") == "pso":
+        if "x" in st:
+            x, v = np.array(st["x"]), np.array(st["v"])
+            pbest, pbest_f = np.array(st["pbest"]), np.array(st["pbest_f"])
+            gen0 = int(st["generation"])
+            rng = np.random.default_rng([seed, gen0])
+        else:
+            x = rng.uniform(0, 1, (npart, n))
+            x[0] = u0  # the base case is one of the particles
+            v = rng.uniform(-vmax, vmax, (npart, n)) * 0.5
+            xm = on_mesh(x)
+            fx = cache(xm)
+            pbest, pbest_f = xm.copy(), fx.copy()
+            gen0 = 1
+        rec.phase = "particle swarm"
+        for gen in range(gen0, int(s["generations"])):
+            lbest = np.array([pbest[nb[np.argmin(pbest_f[nb])]] for nb in nbrs])
+            r1 = rng.uniform(size=(npart, n))
+            r2 = rng.uniform(size=(npart, n))
+            v = chi * (v + float(s["cognitive"]) * r1 * (pbest - x) + float(s["social"]) * r2 * (lbest - x))
+            v = np.clip(v, -vmax, vmax)
+            x, v = _reflect(x + v, v)
+            xm = on_mesh(x)
+            fx = cache(xm)
+            better = fx < pbest_f
+            pbest[better] = xm[better]
+            pbest_f[better] = fx[better]
+            rec.save({"phase": "pso", "x": x.tolist(), "v": v.tolist(), "pbest": pbest.tolist(),
+                      "pbest_f": pbest_f.tolist(), "generation": gen + 1})
+            rng = np.random.default_rng([seed, gen + 1])
+        st = {"phase": "hj", "base": rec.best_u.tolist(), "step": float(s["hj_initial_step"]), "reductions": 0}
+        rec.save(st)
+
+    if st.get("phase") == "hj":
+        rec.phase = "Hooke-Jeeves"
+        base = np.array(st["base"])
+        step = float(st["step"])
+        reductions = int(st["reductions"])
+        fb = float(cache(base[None])[0])
+        eye = np.eye(n)
+
+        def explore(center, fc):
+            pts = np.vstack([np.clip(center + step * eye, 0, 1), np.clip(center - step * eye, 0, 1)])
+            f = cache(pts)
+            # composite of every improving coordinate move (the sequential HJ exploratory move, batched)
+            comp = center.copy()
+            for i in range(n):
+                fp, fm = f[i], f[n + i]
+                if min(fp, fm) < fc:
+                    comp[i] = pts[i, i] if fp <= fm else pts[n + i, i]
+            fcomp = cache(comp[None])[0]
+            allp = np.vstack([pts, comp[None]])
+            allf = np.append(f, fcomp)
+            k = int(np.argmin(allf))
+            if allf[k] < fc:
+                return allp[k], float(allf[k])
+            return center, fc
+
+        while reductions <= int(s["step_reductions"]):
+            x1, f1 = explore(base, fb)
+            if f1 < fb:
+                while True:
+                    p = np.clip(x1 + (x1 - base), 0, 1)
+                    base, fb = x1, f1
+                    fp = float(cache(p[None])[0])
+                    x2, f2 = explore(p, fp)
+                    if f2 < fb:
+                        x1, f1 = x2, f2
+                    else:
+                        break
+            else:
+                step /= float(s["mesh_divider"])
+                reductions += 1
+            rec.save({"phase": "hj", "base": base.tolist(), "step": step, "reductions": reductions})
+        st = {"phase": "polish"}
+        rec.save(st)
+
+    if st.get("phase") == "polish" and s.get("polish", True) and residuals is not None:
+        rec.phase = "least-squares polish"
+        least_squares_refine(rec, residuals, rec.best_u, max_jacobians=int(s["polish_max_evaluations"]))
+    rec.save({"phase": "done"})
+
+
+# ============================================================================ least squares
+def least_squares_refine(rec: Recorder, residuals, u0, max_jacobians: int = 60, diff_step: float = 1e-6):
+    """Bounded least squares (scipy TRF) from u0; the Jacobian's columns are one batch of n + 1 runs.
+
+    ``residuals(U) -> (c, n_res)`` with sum(r^2) the objective.
+    """
+    from scipy.optimize import least_squares
+
+    cache: dict[bytes, np.ndarray] = {}
+
+    def res_batch(U):
+        R = residuals(U)
+        f = np.einsum("ij,ij->i", R, R)
+        # record the evaluations (best point, history)
+        rec.evaluations += len(U)
+        k = int(np.argmin(f))
+        if f[k] < rec.best_f:
+            rec.best_f, rec.best_u = float(f[k]), np.clip(U[k], 0, 1).copy()
+        rec.history.append((rec.evaluations, rec.elapsed, rec.best_f))
+        if rec.progress:
+            rec.progress.update(f"{rec.phase} evaluations {rec.evaluations}, best {rec.best_f:.6g}")
+        return R
+
+    def fun(u):
+        key = np.asarray(u).tobytes()
+        if key not in cache:
+            cache[key] = res_batch(np.asarray(u)[None])[0]
+        return cache[key]
+
+    def jac(u):
+        u = np.asarray(u)
+        r0 = fun(u)
+        n = len(u)
+        h = diff_step * np.ones(n)
+        U = np.repeat(u[None], n, axis=0)
+        # forward differences, backwards where the forward step would leave the box
+        sign = np.where(u + h > 1.0, -1.0, 1.0)
+        U[np.arange(n), np.arange(n)] += sign * h
+        R = res_batch(U)
+        return ((R - r0[None]) / (sign * h)[:, None]).T
+
+    lo = np.zeros(len(u0))
+    hi = np.ones(len(u0))
+    start = np.clip(np.asarray(u0, dtype=float), lo + 1e-12, hi - 1e-12)
+    least_squares(fun, start, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_jacobians,
+                  ftol=1e-12, xtol=1e-12, gtol=1e-12)
+
+
+# ============================================================================ library algorithms
+def differential_evolution(rec: Recorder, n, seed, settings, u0):
+    from scipy.optimize import differential_evolution as de
+
+    def f(x):  # vectorized: x has shape (n, S)
+        return rec(np.asarray(x).T)
+
+    de(f, bounds=[(0.0, 1.0)] * n, seed=seed, vectorized=True, updating="deferred", polish=False,
+       popsize=int(settings["popsize"]), maxiter=int(settings["maxiter"]), tol=float(settings["tol"]),
+       mutation=tuple(settings["mutation"]), recombination=float(settings["recombination"]), x0=u0)
+
+
+def nelder_mead(rec: Recorder, n, seed, settings, u0):
+    from scipy.optimize import minimize
+
+    minimize(lambda u: float(rec(u[None])[0]), u0, method="Nelder-Mead", bounds=[(0.0, 1.0)] * n,
+             options={"maxfev": int(settings["maxfev"]), "xatol": float(settings["xatol"]),
+                      "fatol": float(settings["fatol"]), "adaptive": True})
+
+
+def cma_es(rec: Recorder, n, seed, settings, u0):
+    from ..errors import require
+
+    cma = require("cma", "analysis")
+    opts = {"bounds": [0.0, 1.0], "seed": seed + 1, "maxfevals": int(settings["maxfevals"]), "verbose": -9}
+    if int(settings["popsize"]):
+        opts["popsize"] = int(settings["popsize"])
+    es = cma.CMAEvolutionStrategy(list(u0), float(settings["sigma0"]), opts)
+    while not es.stop():
+        X = np.array(es.ask())
+        es.tell(list(X), list(rec(X)))
+
+
+def least_squares_only(rec: Recorder, residuals, settings, u0):
+    least_squares_refine(rec, residuals, u0, max_jacobians=int(settings["max_nfev"]),
+                         diff_step=float(settings["diff_step"]))

@@ -1,0 +1,138 @@
+"""The calibration objective, evaluated for whole batches of candidate walls.
+
+Objectives (``calibration.objective``), over the target sensors i and their
+valid measured samples t (missing values and spikes excluded):
+
+- ``cse``: sum_i sum_t (s_it - y_it)^2, the study's sum of cumulative squared errors
+  [unit^2; degC^2 for temperatures];
+- ``rmse_accuracy``: sum_i RMSE_i / accuracy_i (dimensionless; heat fluxes and
+  temperatures can then be mixed);
+- ``weighted_cse``: sum_i w_i CSE_i with the sensors' ``weight``;
+- ``weighted_rmse``: sum_i w_i RMSE_i.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from ..engines.fd import FDEngine, PreparedFD
+from ..simulation import Prepared
+from .space import ParameterSpace
+
+
+class Evaluator:
+    """Runs candidate parameter vectors through the batched engine and scores them.
+
+    Parameters
+    ----------
+    prepared : Prepared
+        The study's data on the engine grid (:func:`wallcal.simulation.prepare`).
+    space : ParameterSpace
+    """
+
+    def __init__(self, prepared: Prepared, space: ParameterSpace):
+        self.prepared = prepared
+        self.space = space
+        study = prepared.study
+        inp = prepared.inp
+        opts = dict(inp.options)
+        opts["exponential_layers"] = frozenset(
+            i for p in space.parameters if p.property == "conductivity_temperature_coefficient" for i in p.layers
+        )
+        inp = dataclasses.replace(inp, options=opts)
+        self.engine: PreparedFD = FDEngine(inp.scheme).prepare(inp, contact_layers=space.contact_layers)
+        self.wall = study.wall
+        # rows of the engine output for each target
+        probe_rows = {name: k for k, name in enumerate(self.engine.probe_names)}
+        npr = len(self.engine.probe_names)
+        self.rows = []
+        self.y = []
+        self.mask = []
+        self.weights = []
+        self.scale = []
+        for name in space.targets:
+            s = study.sensor(name)
+            if s.quantity == "heat_flux":
+                self.rows.append(npr + (0 if s.face == "exterior" else 1))
+            else:
+                self.rows.append(probe_rows[name])
+            y = prepared.measured[name].to_numpy(dtype=float)
+            ok = np.isfinite(y)
+            self.y.append(np.where(ok, y, 0.0))
+            self.mask.append(ok)
+            self.weights.append(s.weight)
+            if space.objective == "rmse_accuracy":
+                acc = s.accuracy if s.accuracy is not None else s.accuracy_relative * float(np.sqrt(np.mean(y[ok] ** 2)))
+                self.scale.append(acc)
+            else:
+                self.scale.append(1.0)
+        self.y = np.array(self.y)
+        self.mask = np.array(self.mask)
+        self.n_valid = self.mask.sum(axis=1)
+        self.probe_params = {p.probe: j for j, p in enumerate(space.parameters) if p.probe is not None}
+        self.evaluations = 0
+        self.seconds = 0.0
+
+    # ------------------------------------------------------------------ evaluation
+    def simulate(self, X: np.ndarray) -> np.ndarray:
+        """Target series of every candidate, shape (n_candidates, n_targets, n_times)."""
+        X = np.atleast_2d(X)
+        t = time.perf_counter()
+        props, depths = self.space.properties(self.wall, X)
+        pd_ = self.engine.probe_depth_matrix(n=X.shape[0])
+        for k, name in enumerate(self.engine.probe_names):
+            if name in depths:
+                pd_[:, k] = depths[name]
+        res = self.engine.run_batch(props, pd_)
+        self.evaluations += X.shape[0]
+        self.seconds += time.perf_counter() - t
+        return res.out[:, self.rows, :]
+
+    def errors(self, X: np.ndarray) -> np.ndarray:
+        """Simulated minus measured at the valid samples (0 elsewhere), shape (c, targets, times)."""
+        sim = self.simulate(X)
+        return np.where(self.mask[None], sim - self.y[None], 0.0)
+
+    def per_target(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """CSE and RMSE per candidate and target, each shape (c, n_targets)."""
+        e = self.errors(X)
+        cse = np.einsum("ctk,ctk->ct", e, e)
+        return cse, np.sqrt(cse / self.n_valid[None])
+
+    def objective_from(self, cse: np.ndarray) -> np.ndarray:
+        rmse = np.sqrt(cse / self.n_valid[None])
+        w = np.asarray(self.weights)[None]
+        obj = self.space.objective
+        if obj == "cse":
+            return cse.sum(axis=1)
+        if obj == "weighted_cse":
+            return (w * cse).sum(axis=1)
+        if obj == "weighted_rmse":
+            return (w * rmse).sum(axis=1)
+        return (rmse / np.asarray(self.scale)[None]).sum(axis=1)
+
+    def objective(self, X: np.ndarray) -> np.ndarray:
+        """Objective of every candidate (see module docstring), shape (c,)."""
+        cse, _ = self.per_target(X)
+        out = self.objective_from(cse)
+        return np.where(np.isfinite(out), out, np.inf)
+
+    def residuals(self, X: np.ndarray) -> np.ndarray:
+        """Residual vectors r with sum(r^2) = objective for the squared-error objectives, shape (c, n_res).
+
+        For the RMSE-type objectives the residuals are scaled so that sum(r^2) is the
+        sum of squared RMSE/scale (a smooth surrogate used by least squares).
+        """
+        e = self.errors(X)
+        w = np.ones(len(self.rows))
+        if self.space.objective == "weighted_cse":
+            w = np.asarray(self.weights, dtype=float)
+        elif self.space.objective in ("weighted_rmse", "rmse_accuracy"):
+            sc = np.asarray(self.scale if self.space.objective == "rmse_accuracy" else np.ones(len(self.rows)))
+            ww = np.asarray(self.weights) if self.space.objective == "weighted_rmse" else np.ones(len(self.rows))
+            w = ww / (sc**2 * self.n_valid)
+        r = e * np.sqrt(w)[None, :, None]
+        return r.reshape(e.shape[0], -1)  # missing samples carry a zero residual
