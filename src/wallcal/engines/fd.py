@@ -86,6 +86,19 @@ class BatchResult:
         return self.energy[:, 0] - (self.energy[:, 1] - self.energy[:, 2])
 
 
+_BLAS_LIMITER = None
+
+
+def _blas_single_thread():
+    """Context manager limiting BLAS/LAPACK to one thread (threadpoolctl), created once."""
+    global _BLAS_LIMITER
+    if _BLAS_LIMITER is None:
+        from threadpoolctl import ThreadpoolController
+
+        _BLAS_LIMITER = ThreadpoolController()
+    return _BLAS_LIMITER.limit(limits=1, user_api="blas")
+
+
 class PreparedFD:
     """A wall, its grid and its boundary data, ready to run candidate walls."""
 
@@ -245,7 +258,10 @@ class PreparedFD:
             raise EngineError("the modal fast path needs constant conductivities, heat capacity at every "
                               "unknown node and no stiff links; use path='general'")
         if path in ("auto", "modal") and possible:
-            return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced)
+            # one BLAS thread inside the kernel's own parallel loop (LAPACK's eigh would otherwise
+            # start threads of its own in every numba thread and oversubscribe the cores)
+            with _blas_single_thread():
+                return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced)
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         kind = np.broadcast_to(self.kind, g.shape).copy()

@@ -97,7 +97,7 @@ def _modal_one(kd, ko, cap_u, p, theta, dt, s, ue, ui, out_step, out_w, H, Dp, D
     return tend
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _smooth_index(j, n_steps, theta):
     """Weights (w_prev, w_here, w_next) of the energy-consistent face flux at grid time j.
 
@@ -112,15 +112,22 @@ def _smooth_index(j, n_steps, theta):
     return 0.5 * (1.0 - theta), 0.5, 0.5 * theta
 
 
-@njit(cache=True)
-def _finalize(k, nk, w, ring, n_steps, theta, ue, ui, dt, Dp, Dd, smooth, Zp, Zf, direct):
-    """Store the modal states and direct terms of output k (between grid nk and nk + 1)."""
+@njit(cache=True, fastmath=True, inline="always")
+def _finalize(k, nk, w, ring, n_steps, theta, ue, ui, dt, G, Dp, Dd, smooth, zp, zf, out):
+    """Output k (between grid nk and nk + 1) from the ring of modal states.
+
+    Probe rows use the state interpolated in time; face-flux rows use the energy-consistent
+    two-step average of the state (and of the inputs).
+    """
     m = ring.shape[1]
     n_q = Dp.shape[0]
+    r0 = nk % 4
+    r1 = (nk + 1) % 4
     for k2 in range(m):
-        Zp[k, k2] = (1.0 - w) * ring[nk % 4, k2] + w * ring[(nk + 1) % 4, k2]
+        zp[k2] = (1.0 - w) * ring[r0, k2] + w * ring[r1, k2]
+        zf[k2] = 0.0
     for q in range(n_q):
-        direct[k, q] = 0.0
+        out[q, k] = 0.0
     for jj in range(2):
         j = nk + jj
         wt = (1.0 - w) if jj == 0 else w
@@ -129,76 +136,73 @@ def _finalize(k, nk, w, ring, n_steps, theta, ue, ui, dt, Dp, Dd, smooth, Zp, Zf
         a, b, c = _smooth_index(j, n_steps, theta)
         jm = max(j - 1, 0)
         jp = min(j + 1, n_steps)
+        ra = jm % 4
+        rb = j % 4
+        rc = jp % 4
+        wa = wt * a
+        wb = wt * b
+        wc = wt * c
         for k2 in range(m):
-            v = b * ring[j % 4, k2]
-            if a != 0.0:
-                v += a * ring[jm % 4, k2]
-            if c != 0.0:
-                v += c * ring[jp % 4, k2]
-            if jj == 0:
-                Zf[k, k2] = wt * v
-            else:
-                Zf[k, k2] += wt * v
+            zf[k2] += wa * ring[ra, k2] + wb * ring[rb, k2] + wc * ring[rc, k2]
         ue_s = a * ue[jm] + b * ue[j] + c * ue[jp]
         ui_s = a * ui[jm] + b * ui[j] + c * ui[jp]
-        lo = max(j - 1, 0)
-        hi = min(j + 1, n_steps)
-        inv = 1.0 / ((hi - lo) * dt)
-        de = (ue[hi] - ue[lo]) * inv
-        di = (ui[hi] - ui[lo]) * inv
+        inv = 1.0 / ((jp - jm) * dt)
+        de = (ue[jp] - ue[jm]) * inv
+        di = (ui[jp] - ui[jm]) * inv
         for q in range(n_q):
             if smooth[q]:
-                direct[k, q] += wt * (Dp[q, 0] * ue_s + Dp[q, 1] * ui_s + Dd[q, 0] * de + Dd[q, 1] * di)
+                out[q, k] += wt * (Dp[q, 0] * ue_s + Dp[q, 1] * ui_s + Dd[q, 0] * de + Dd[q, 1] * di)
             else:
-                direct[k, q] += wt * (Dp[q, 0] * ue[j] + Dp[q, 1] * ui[j])
-    if w == 0.0:
-        for k2 in range(m):
-            Zf[k, k2] = Zf[k, k2]
+                out[q, k] += wt * (Dp[q, 0] * ue[j] + Dp[q, 1] * ui[j])
+    for q in range(n_q):
+        acc = 0.0
+        if smooth[q]:
+            for k2 in range(m):
+                acc += G[q, k2] * zf[k2]
+        else:
+            for k2 in range(m):
+                acc += G[q, k2] * zp[k2]
+        out[q, k] += acc
 
 
 @njit(cache=True, fastmath=True)
 def _recur(mu, r0, r1, z, s, ue, ui, dt, theta, out_step, out_w, G, Dp, Dd, smooth, out):
     """The modal recursion over all steps; outputs formed only at the requested times.
 
-    The last four modal states are kept in a ring; each output's state (and, for face
-    fluxes, the energy-consistent two-step average) is stored, so memory is outputs x modes,
-    independent of the number of steps. The outputs are then one matrix product. fastmath
-    lets the mode loop use SIMD (the modes are independent).
+    The state is advanced in a plain 1-D array (it vectorises: the modes are independent);
+    near output times it is copied into a ring of the last four states, from which each
+    output is formed at once. Memory does not depend on the number of steps.
     """
     m = z.shape[0]
-    n_q = G.shape[0]
     n_steps = s.shape[0]
     n_out = out_step.shape[0]
     ring = np.zeros((4, m))
+    zp = np.zeros(m)
+    zf = np.zeros(m)
     for k in range(m):
         ring[0, k] = z[k]
-    Zp = np.zeros((n_out, m))
-    Zf = np.zeros((n_out, m))
-    direct = np.zeros((n_out, n_q))
     k_out = 0
+    zc = z.copy()
     for n in range(n_steps):
-        a = n % 4
-        b = (n + 1) % 4
         s0 = s[n, 0]
         s1 = s[n, 1]
         for k in range(m):
-            ring[b, k] = mu[k] * ring[a, k] + r0[k] * s0 + r1[k] * s1
-        # an output between grid nk and nk + 1 is complete once the state at nk + 2 is known
-        while k_out < n_out and out_step[k_out] <= n - 1:
-            _finalize(k_out, out_step[k_out], out_w[k_out], ring, n_steps, theta, ue, ui, dt, Dp, Dd, smooth,
-                      Zp, Zf, direct)
-            k_out += 1
+            zc[k] = mu[k] * zc[k] + r0[k] * s0 + r1[k] * s1
+        if k_out < n_out and n + 2 >= out_step[k_out]:
+            b = (n + 1) % 4
+            for k in range(m):
+                ring[b, k] = zc[k]
+            # an output between grid nk and nk + 1 is complete once the state at nk + 2 is known
+            while k_out < n_out and out_step[k_out] <= n - 1:
+                _finalize(k_out, out_step[k_out], out_w[k_out], ring, n_steps, theta, ue, ui, dt, G, Dp, Dd,
+                          smooth, zp, zf, out)
+                k_out += 1
     while k_out < n_out:
-        _finalize(k_out, out_step[k_out], out_w[k_out], ring, n_steps, theta, ue, ui, dt, Dp, Dd, smooth,
-                  Zp, Zf, direct)
+        _finalize(k_out, out_step[k_out], out_w[k_out], ring, n_steps, theta, ue, ui, dt, G, Dp, Dd, smooth,
+                  zp, zf, out)
         k_out += 1
     for k in range(m):
-        z[k] = ring[n_steps % 4, k]
-    Yp = Zp @ G.T
-    Yf = Zf @ G.T
-    for j in range(n_out):
-        for q in range(n_q):
-            out[q, j] = (Yf[j, q] if smooth[q] else Yp[j, q]) + direct[j, q]
+        z[k] = zc[k]
 
 
 @njit(parallel=True, cache=True)
