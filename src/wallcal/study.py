@@ -628,3 +628,56 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         calibration=calib, raw=raw,
     )
     return study
+
+
+# ============================================================================ writing walls
+def wall_to_dict(wall: Wall) -> dict:
+    """The ``[wall]`` table of a wall file (inverse of :func:`load_wall`)."""
+    layers = []
+    for layer in wall.layers:
+        d: dict[str, Any] = {"id": layer.id}
+        if layer.material:
+            d["material"] = layer.material
+        d["thickness"] = layer.thickness
+        if layer.is_massless:
+            d["thermal_resistance"] = layer.thermal_resistance
+        else:
+            if layer.conductivity is not None:
+                d["conductivity"] = layer.conductivity
+            d["density"] = layer.density
+            d["specific_heat"] = layer.specific_heat
+            if layer.conductivity_temperature_coefficient:
+                d["conductivity_temperature_coefficient"] = layer.conductivity_temperature_coefficient
+            if layer.conductivity_table is not None:
+                d["conductivity_table"] = [list(p) for p in layer.conductivity_table]
+        if layer.reference_temperature != 10.0 or layer.is_temperature_dependent:
+            d["reference_temperature"] = layer.reference_temperature
+        if layer.contact_resistance:
+            d["contact_resistance"] = layer.contact_resistance
+        layers.append(d)
+    out: dict[str, Any] = {}
+    if wall.name:
+        out["name"] = wall.name
+    if wall.description:
+        out["description"] = wall.description
+    out["layers"] = layers
+    if wall.probes:
+        probes = []
+        for p in wall.probes:
+            d = {"name": p.name, "depth": p.depth}
+            if p.side:
+                d["side"] = p.side
+            probes.append(d)
+        out["probes"] = probes
+    return out
+
+
+def dump_wall(wall: Wall, header: str = "") -> str:
+    """A wall file (TOML text) that :func:`load_wall` reads back, and that a study can use with
+    ``[wall] file = "..."``."""
+    import tomli_w
+
+    text = tomli_w.dumps({"wall": wall_to_dict(wall)})
+    if header:
+        text = "".join(f"# {line}\n" for line in header.splitlines()) + text
+    return text

@@ -23,7 +23,10 @@ topology                    "vonneumann"  neighbourhood: von Neumann lattice, or
 mesh_divisions              64       the swarm evaluates points of a mesh with range/64 spacing
 hj_initial_step             0.0625   Hooke-Jeeves initial step, fraction of the range
 mesh_divider                2        step reduction factor
-step_reductions             12       Hooke-Jeeves stops after this many step reductions
+step_reductions             6        Hooke-Jeeves stops after this many step reductions
+min_improvement             1e-6     a Hooke-Jeeves move counts as a success only if it lowers the
+                                     objective by more than this fraction (flat valleys would otherwise
+                                     creep on at one step size for thousands of simulations)
 polish                      true     finish with a bounded least-squares polish (squared-error objectives)
 polish_max_evaluations      60       Jacobian batches allowed in the polish (each n + 1 simulations)
 ==========================  =======  ===============================================================
@@ -54,7 +57,8 @@ PSO_HJ_DEFAULTS = {
     "mesh_divisions": 64,
     "hj_initial_step": 0.0625,
     "mesh_divider": 2,
-    "step_reductions": 12,
+    "step_reductions": 6,
+    "min_improvement": 1e-6,
     "polish": True,
     "polish_max_evaluations": 60,
 }
@@ -290,6 +294,7 @@ def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, res
         reductions = int(st["reductions"])
         fb = float(cache(base[None])[0])
         eye = np.eye(n)
+        tol = float(s["min_improvement"])
 
         def explore(center, fc):
             pts = np.vstack([np.clip(center + step * eye, 0, 1), np.clip(center - step * eye, 0, 1)])
@@ -304,7 +309,7 @@ def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, res
             allp = np.vstack([pts, comp[None]])
             allf = np.append(f, fcomp)
             k = int(np.argmin(allf))
-            if allf[k] < fc:
+            if allf[k] < fc - tol * abs(fc):
                 return allp[k], float(allf[k])
             return center, fc
 
@@ -316,7 +321,7 @@ def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, res
                     base, fb = x1, f1
                     fp = float(cache(p[None])[0])
                     x2, f2 = explore(p, fp)
-                    if f2 < fb:
+                    if f2 < fb - tol * abs(fb):
                         x1, f1 = x2, f2
                     else:
                         break

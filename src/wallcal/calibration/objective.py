@@ -65,7 +65,8 @@ class Evaluator:
             self.mask.append(ok)
             self.weights.append(s.weight)
             if space.objective == "rmse_accuracy":
-                acc = s.accuracy if s.accuracy is not None else s.accuracy_relative * float(np.sqrt(np.mean(y[ok] ** 2)))
+                y_eff = float(np.sqrt(np.mean(y[ok] ** 2)))
+                acc = s.accuracy if s.accuracy is not None else s.accuracy_relative * y_eff
                 self.scale.append(acc)
             else:
                 self.scale.append(1.0)

@@ -248,7 +248,8 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
             idx_list = []
             for k, lid in enumerate(ids):
                 if not isinstance(lid, str) or lid not in layer_ids:
-                    problems.add(f"{pt._p('layers')}[{k}]", f"{lid!r} is not a layer id; {closest(str(lid), layer_ids)}")
+                    problems.add(f"{pt._p('layers')}[{k}]",
+                                 f"{lid!r} is not a layer id; {closest(str(lid), layer_ids)}")
                     bad = True
                     continue
                 if (lid, prop) in used:

@@ -1,0 +1,296 @@
+"""Automatic calibration: from a study to the optimal wall, with checkpoints and a report.
+
+:func:`calibrate` validates the parameter space, prepares the data once, runs the
+chosen algorithm with every generation's candidates as one engine batch, keeps
+the best point and a checkpoint after every generation (so Ctrl-C or a crash
+loses nothing and ``resume=True`` continues), and returns a
+:class:`CalibrationResult`. :meth:`CalibrationResult.write` produces
+``calibrated_wall.toml``, ``calibration.json``, ``metrics.csv`` (every sensor,
+base and calibrated: the paper's Table VIII), ``convergence.png`` and ``fit.png``
+(measured vs base vs calibrated per target: the paper's Fig. 5).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import StudyError, WallcalError
+from ..simulation import Prepared, prepare, simulate
+from ..study import Study, dump_wall, load_wall
+from . import algorithms as alg
+from .objective import Evaluator
+from .space import ParameterSpace, parse_space
+
+#: A target whose calibrated RMSE is this much below its noise floor is flagged (degC or W/m2 ...)
+FLOOR_MARGIN_ABS = 0.05
+FLOOR_MARGIN_REL = 0.2
+
+
+@dataclass
+class CalibrationResult:
+    """Outcome of a calibration.
+
+    Attributes
+    ----------
+    space : ParameterSpace
+    x_base, x_opt : ndarray
+        Parameter values [SI units] of the base case and of the optimum.
+    f_base, f_opt : float
+        Objective values.
+    evaluations : int
+        Simulations run.
+    seconds : float
+        Wall time [s].
+    history : list of (evaluations, seconds, best objective)
+    status : str
+        ``"complete"`` or ``"interrupted"`` (best point so far).
+    wall_base, wall_opt : Wall
+    metrics : DataFrame
+        Every sensor, base and calibrated (column ``case``).
+    floors : dict
+        Target -> RMSE of the reference wall (noise floor), when the study names one.
+    notes : list of str
+        Plain-language remarks (targets below their noise floor, parameters at a bound...).
+    """
+
+    study: Study
+    space: ParameterSpace
+    algorithm: str
+    settings: dict
+    seed: int
+    x_base: np.ndarray
+    x_opt: np.ndarray
+    f_base: float
+    f_opt: float
+    evaluations: int
+    seconds: float
+    history: list
+    status: str
+    wall_base: object
+    wall_opt: object
+    metrics: pd.DataFrame
+    simulated: dict = field(default_factory=dict)
+    measured: pd.DataFrame | None = None
+    floors: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    # ------------------------------------------------------------------ reporting
+    def parameter_table(self) -> pd.DataFrame:
+        rows = []
+        for p, xb, xo in zip(self.space.parameters, self.x_base, self.x_opt, strict=True):
+            rows.append({"parameter": p.name, "base": xb, "lower": p.lower, "upper": p.upper, "optimum": xo,
+                         "change": (xo - xb) / xb if xb else np.nan,
+                         "at_bound": bool(np.isclose(xo, p.lower, rtol=0, atol=1e-6 * p.span)
+                                          or np.isclose(xo, p.upper, rtol=0, atol=1e-6 * p.span))})
+        return pd.DataFrame(rows).set_index("parameter")
+
+    def to_json(self) -> dict:
+        return {
+            "status": self.status,
+            "study": str(self.study.path) if self.study.path else None,
+            "algorithm": self.algorithm,
+            "settings": self.settings,
+            "seed": self.seed,
+            "objective": self.space.objective,
+            "targets": list(self.space.targets),
+            "objective_base": self.f_base,
+            "objective_optimum": self.f_opt,
+            "evaluations": self.evaluations,
+            "wall_time_s": self.seconds,
+            "parameters": [
+                {"name": p.name, "property": p.property,
+                 "layers": [self.study.wall.layers[i].id for i in p.layers], "probe": p.probe,
+                 "base": xb, "bounds": [p.lower, p.upper], "optimum": xo}
+                for p, xb, xo in zip(self.space.parameters, self.x_base, self.x_opt, strict=True)
+            ],
+            "rmse": {case: self.metrics[self.metrics["case"] == case].set_index("signal")["rmse"].to_dict()
+                     for case in ("base", "calibrated")},
+            "noise_floors": self.floors,
+            "notes": self.notes,
+            "history": [list(h) for h in self.history],
+        }
+
+    def write(self, out_dir) -> Path:
+        """Write every output atomically into ``out_dir``."""
+        from ..outputs import output_dir
+        from ..simulation import manifest_of
+
+        with output_dir(out_dir, manifest=manifest_of(self.study, "calibrate")) as tmp:
+            self.write_into(Path(tmp))
+        return Path(out_dir)
+
+    def write_into(self, d: Path) -> None:
+        header = (f"Calibrated wall ({self.status}) from {self.study.path or 'study'}\n"
+                  f"algorithm {self.algorithm}, objective {self.space.objective} {self.f_base:.6g} -> {self.f_opt:.6g}")
+        (d / "calibrated_wall.toml").write_text(dump_wall(self.wall_opt, header))
+        (d / "calibration.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
+        self.metrics.to_csv(d / "metrics.csv", index=False, float_format="%.6g")
+        self.parameter_table().to_csv(d / "parameters.csv", float_format="%.6g")
+        from .plots import plot_convergence, plot_fit
+
+        plot_convergence(self, d / "convergence.png")
+        plot_fit(self, d / "fit.png")
+
+
+# ============================================================================ the run
+def _checkpoint_path(out_dir: Path | None) -> Path | None:
+    if out_dir is None:
+        return None
+    out_dir = Path(out_dir).resolve()
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    return out_dir.parent / f".{out_dir.name}.checkpoint.json"
+
+
+def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | None = None, seed: int | None = None,
+              out_dir: str | Path | None = None, resume: bool = False, progress: bool = True,
+              prepared: Prepared | None = None, space: ParameterSpace | None = None) -> CalibrationResult:
+    """Calibrate the study's wall.
+
+    Parameters
+    ----------
+    study : Study
+        With a ``[calibration]`` table (see ``docs/calibration.md``).
+    algorithm : str, optional
+        ``pso-hj`` (default), ``least-squares``, ``differential-evolution``, ``nelder-mead``, ``cma-es``.
+    settings : dict, optional
+        Algorithm settings overriding the study's ``calibration.settings``.
+    seed : int, optional
+    out_dir : path, optional
+        Where results will be written; its checkpoint file sits next to it
+        (``.<name>.checkpoint.json``), updated after every generation.
+    resume : bool
+        Continue from the checkpoint of ``out_dir``.
+    progress : bool
+        Show a progress line on stderr.
+
+    Returns
+    -------
+    CalibrationResult
+        ``status`` is ``"interrupted"`` when Ctrl-C stopped the run (the best point so far).
+    """
+    space = space or parse_space(study)
+    algorithm = algorithm or space.algorithm
+    if algorithm not in alg.__dict__.get("ALGORITHMS", ()) and algorithm not in (
+            "pso-hj", "least-squares", "differential-evolution", "nelder-mead", "cma-es"):
+        from ..errors import closest
+
+        raise StudyError([f"calibration.algorithm: unknown algorithm {algorithm!r}; "
+                          f"{closest(algorithm, ('pso-hj', 'least-squares', 'differential-evolution', 'nelder-mead', 'cma-es'))}"])
+    user_settings = dict(space.settings if algorithm == space.algorithm else {})
+    user_settings.update(settings or {})
+    sett = alg.settings_for(algorithm, user_settings)
+    seed = space.seed if seed is None else int(seed)
+    prepared = prepared or prepare(study, "fd-cn" if study.simulation.engine == "energyplus" else None)
+    if prepared.inp.scheme not in ("cn", "implicit"):
+        raise WallcalError("calibration runs the fd engine")
+    ev = Evaluator(prepared, space)
+
+    def f(U):
+        return ev.objective(space.from_unit(U))
+
+    def residuals(U):
+        return ev.residuals(space.from_unit(U))
+
+    ckpt = _checkpoint_path(out_dir)
+    meta = {"algorithm": algorithm, "seed": seed, "settings": sett, "parameters": space.names,
+            "study_sha256": study.sha256}
+    prog = alg.Progress(f"calibrate ({algorithm})", enabled=progress)
+    rec = alg.Recorder(f=f, n=space.n, progress=prog, checkpoint=ckpt, meta=meta)
+    state = None
+    if resume:
+        if ckpt is None or not ckpt.exists():
+            raise WallcalError(f"nothing to resume: no checkpoint {ckpt} (run without --resume)")
+        data = json.loads(ckpt.read_text())
+        for key in ("algorithm", "seed", "parameters", "study_sha256"):
+            if data.get(key) != meta[key]:
+                raise WallcalError(f"{ckpt}: the checkpoint was made with another {key} "
+                                   f"({data.get(key)!r} != {meta[key]!r}); run without --resume")
+        rec.restore(data)
+        state = data.get("state")
+    u0 = space.to_unit(space.base)
+    f_base = float(ev.objective(space.base[None])[0])
+    status = "complete"
+    try:
+        if rec.best_u is None:
+            rec(u0[None])
+        if algorithm == "pso-hj":
+            alg.pso_hj(rec, space.n, seed, sett, u0, residuals=residuals if space.objective in (
+                "cse", "weighted_cse") else None, state=state)
+        elif algorithm == "least-squares":
+            start = rec.best_u if state else u0
+            alg.least_squares_only(rec, residuals, sett, start)
+        elif algorithm == "differential-evolution":
+            alg.differential_evolution(rec, space.n, seed, sett, rec.best_u)
+        elif algorithm == "nelder-mead":
+            alg.nelder_mead(rec, space.n, seed, sett, rec.best_u)
+        elif algorithm == "cma-es":
+            alg.cma_es(rec, space.n, seed, sett, rec.best_u)
+    except KeyboardInterrupt:
+        status = "interrupted"
+        rec.save({"phase": "interrupted"} if algorithm != "pso-hj" else None)
+    prog.close(f"{rec.phase or algorithm}: {rec.evaluations} simulations, best {rec.best_f:.6g}, "
+               f"{rec.elapsed:.1f} s ({status})")
+    x_opt = space.from_unit(rec.best_u)
+    result = _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, rec, status)
+    if status == "complete" and ckpt is not None and ckpt.exists():
+        ckpt.unlink()
+    return result
+
+
+def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, rec, status) -> CalibrationResult:
+    wall_opt = space.wall_at(study.wall, x_opt)
+    base_res = simulate(study, prepared=prepared)
+    opt_res = simulate(study, prepared=prepared, wall=wall_opt)
+    met = pd.concat([base_res.metrics.assign(case="base"), opt_res.metrics.assign(case="calibrated")])
+    met = met[["case"] + [c for c in met.columns if c != "case"]]
+    floors = {}
+    notes = []
+    if space.reference_wall:
+        ref_path = Path(space.reference_wall)
+        if not ref_path.is_absolute() and study.path is not None:
+            ref_path = study.path.parent / ref_path
+        ref_wall = load_wall(ref_path)
+        ref_res = simulate(study, prepared=prepared, wall=ref_wall)
+        floors = ref_res.metrics.set_index("signal")["rmse"].to_dict()
+    rm_opt = opt_res.metrics.set_index("signal")["rmse"]
+    rm_base = base_res.metrics.set_index("signal")["rmse"]
+    for name in space.targets:
+        if name in floors:
+            floor = floors[name]
+            if rm_opt[name] < floor - max(FLOOR_MARGIN_ABS, FLOOR_MARGIN_REL * floor):
+                notes.append(f"{name}: calibrated RMSE {rm_opt[name]:.3f} is well below its noise floor {floor:.3f} "
+                             f"(the reference wall's RMSE): the fit absorbs that sensor's bias or noise, i.e. "
+                             f"the calibrated properties compensate a measurement error")
+        if rm_opt[name] > rm_base[name]:
+            notes.append(f"{name}: RMSE rose from {rm_base[name]:.3f} to {rm_opt[name]:.3f}: the objective traded "
+                         "it against the other targets")
+    x_base = space.base
+    for p, xo in zip(space.parameters, x_opt, strict=True):
+        if np.isclose(xo, p.lower, atol=1e-6 * p.span, rtol=0) or np.isclose(xo, p.upper, atol=1e-6 * p.span, rtol=0):
+            notes.append(f"{p.name} ended at a bound ({xo:.6g} in [{p.lower:.6g}, {p.upper:.6g}]): the data would "
+                         "move it further; check the bounds")
+    sim = {"base": base_res.simulated, "calibrated": opt_res.simulated}
+    return CalibrationResult(
+        study=study, space=space, algorithm=algorithm, settings=sett, seed=seed, x_base=x_base, x_opt=x_opt,
+        f_base=f_base, f_opt=float(rec.best_f), evaluations=rec.evaluations, seconds=rec.elapsed,
+        history=rec.history, status=status, wall_base=study.wall, wall_opt=wall_opt, metrics=met.reset_index(drop=True),
+        simulated=sim, measured=base_res.measured, floors=floors, notes=notes,
+    )
+
+
+def convergence_table(history, optimum: float, levels=(0.01, 0.001, 0.0001)) -> list[tuple]:
+    """Simulations and seconds needed to come within each relative level of ``optimum``.
+
+    Returns rows (level, evaluations or None, seconds or None).
+    """
+    rows = []
+    for lev in levels:
+        hit = next(((e, s) for e, s, f in history if f <= optimum * (1 + lev)), (None, None))
+        rows.append((lev, hit[0], hit[1]))
+    return rows
