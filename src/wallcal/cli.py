@@ -17,6 +17,7 @@ from .errors import WallcalError
 #: Modules that add commands (each has ``register(subparsers)``).
 COMMAND_MODULES = (
     "wallcal.commands.simulate",
+    "wallcal.commands.calibrate",
     "wallcal.commands.standards",
     "wallcal.commands.energyplus",
 )

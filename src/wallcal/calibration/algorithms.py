@@ -23,7 +23,7 @@ topology                    "vonneumann"  neighbourhood: von Neumann lattice, or
 mesh_divisions              64       the swarm evaluates points of a mesh with range/64 spacing
 hj_initial_step             0.0625   Hooke-Jeeves initial step, fraction of the range
 mesh_divider                2        step reduction factor
-step_reductions             6        Hooke-Jeeves stops after this many step reductions
+step_reductions             4        Hooke-Jeeves stops after this many step reductions (GenOpt suggests 4)
 min_improvement             1e-6     a Hooke-Jeeves move counts as a success only if it lowers the
                                      objective by more than this fraction (flat valleys would otherwise
                                      creep on at one step size for thousands of simulations)
@@ -57,7 +57,7 @@ PSO_HJ_DEFAULTS = {
     "mesh_divisions": 64,
     "hj_initial_step": 0.0625,
     "mesh_divider": 2,
-    "step_reductions": 6,
+    "step_reductions": 4,
     "min_improvement": 1e-6,
     "polish": True,
     "polish_max_evaluations": 60,

@@ -13,7 +13,6 @@ base and calibrated: the paper's Table VIII), ``convergence.png`` and ``fit.png`
 from __future__ import annotations
 
 import json
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 

@@ -1,0 +1,146 @@
+"""``wallcal calibrate``, ``wallcal crosscheck`` and ``wallcal convert-conductivity``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from ._format import table
+
+
+def register(sub) -> None:
+    p = sub.add_parser("calibrate", help="automatic calibration of the wall's properties",
+                       description="Calibrate the study's wall over its [calibration] parameter space. Writes "
+                                   "calibrated_wall.toml, calibration.json, metrics.csv (base and calibrated, "
+                                   "Table VIII), parameters.csv, convergence.png and fit.png. Ctrl-C keeps the best "
+                                   "wall so far; --resume continues from the last checkpoint.")
+    p.add_argument("study")
+    p.add_argument("--out", metavar="DIR", help="output directory (default: calibration/ next to the study)")
+    p.add_argument("--algorithm", choices=("pso-hj", "least-squares", "differential-evolution", "nelder-mead",
+                                           "cma-es"), help="default: the study's calibration.algorithm")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--resume", action="store_true", help="continue from the checkpoint of --out")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=run_calibrate)
+
+    c = sub.add_parser("crosscheck", help="every wall in every engine: RMSE per target (Table VIII)",
+                       description="Run each wall file in each engine against the study's measurements.")
+    c.add_argument("study")
+    c.add_argument("walls", nargs="+", metavar="WALL.toml")
+    c.add_argument("--engines", default="fd-cn", help="comma-separated engines (default fd-cn)")
+    c.add_argument("--out", metavar="DIR")
+    c.set_defaults(func=run_crosscheck)
+
+    v = sub.add_parser("convert-conductivity", help="convert declared conductivities to the wall's temperature "
+                       "(ISO 10456)", description="Move conductivities from their declared temperature to the "
+                       "mean temperature each layer had in the campaign (from the study's data) or to a given "
+                       "temperature, with the exponential temperature factor of ISO 10456; writes a new wall file.")
+    v.add_argument("study", help="study file (its wall and data)")
+    v.add_argument("--temperature", type=float, metavar="DEGC", help="one target temperature for all layers "
+                   "(default: each layer's mean measured temperature over the period)")
+    v.add_argument("--coefficient", action="append", default=[], metavar="[ID=]F",
+                   help="temperature conversion coefficient f_T [1/K], for all layers or ID=F per layer "
+                        "(repeatable); default each layer's conductivity_temperature_coefficient")
+    v.add_argument("--layers", help="comma-separated layer ids to convert (default: layers with a coefficient)")
+    v.add_argument("--out", metavar="FILE", required=True, help="the new wall file (TOML)")
+    v.set_defaults(func=run_convert)
+
+
+def run_calibrate(args) -> int:
+    from ..calibration import calibrate
+    from ..study import load_study
+
+    study = load_study(args.study)
+    out = Path(args.out) if args.out else Path(args.study).resolve().parent / "calibration"
+    res = calibrate(study, algorithm=args.algorithm, seed=args.seed, out_dir=out, resume=args.resume,
+                    progress=not args.quiet)
+    res.write(out)
+    print(f"{study.name}: {res.algorithm}, objective {res.space.objective} {res.f_base:.6g} -> {res.f_opt:.6g} "
+          f"in {res.evaluations} simulations, {res.seconds:.1f} s ({res.status})")
+    print()
+    print(table(res.parameter_table()[["base", "lower", "upper", "optimum", "change"]],
+                "Parameters (SI units)", percent=("change",)))
+    print()
+    m = res.metrics.pivot(index="signal", columns="case", values="rmse")[["base", "calibrated"]]
+    if res.floors:
+        m["noise floor"] = pd.Series(res.floors)
+    print(table(m.loc[[s.name for s in study.sensors]], "RMSE per sensor (Table VIII)"))
+    for note in res.notes:
+        print(f"note: {note}")
+    print(f"\nwrote {out}/calibrated_wall.toml, calibration.json, metrics.csv, convergence.png, fit.png")
+    if res.status != "complete":
+        print("the run was interrupted: these are the best values so far; continue with --resume")
+        return 130
+    return 0
+
+
+def run_crosscheck(args) -> int:
+    from ..comparison import compare_engines
+    from ..outputs import output_dir
+    from ..simulation import manifest_of
+    from ..study import load_study, load_wall
+
+    study = load_study(args.study)
+    engines = [e.strip() for e in args.engines.split(",") if e.strip()]
+    rows = []
+    targets = study.calibration.get("targets") or [s.name for s in study.sensors if s.quantity == "temperature"]
+    for wpath in args.walls:
+        wall = load_wall(wpath)
+        if not wall.probes:
+            wall = wall.replace(probes=study.wall.probes)
+        missing = [s.name for s in study.sensors if s.quantity == "temperature"
+                   and s.name not in {p.name for p in wall.probes}]
+        if missing:
+            from ..errors import StudyError
+
+            raise StudyError([f"{wpath}: the wall has no probe {', '.join(missing)} that the study's sensors need"])
+        comp = compare_engines(study.replace(wall=wall), engines)
+        for eng in comp.results:
+            met = comp.results[eng].metrics.set_index("signal")
+            rows.append({"wall": Path(wpath).stem, "engine": eng,
+                         **{f"rmse_{t}": met.loc[t, "rmse"] for t in targets}})
+    df = pd.DataFrame(rows)
+    print(table(df.set_index(["wall"]), "Optimal cases and cross-check: RMSE per target (Table VIII)"))
+    if args.out:
+        with output_dir(args.out, manifest=manifest_of(study, "crosscheck")) as tmp:
+            df.to_csv(Path(tmp) / "crosscheck.csv", index=False, float_format="%.6g")
+        print(f"\nwrote {args.out}/crosscheck.csv")
+    return 0
+
+
+def run_convert(args) -> int:
+    from ..calibration.manual import convert_conductivities, layer_mean_temperatures
+    from ..errors import StudyError
+    from ..study import dump_wall, load_study
+
+    study = load_study(args.study)
+    coeffs: dict[str, float] | float | None = None
+    for item in args.coefficient:
+        if "=" in item:
+            lid, val = item.split("=", 1)
+            coeffs = coeffs if isinstance(coeffs, dict) else {}
+            try:
+                coeffs[lid.strip()] = float(val)
+            except ValueError:
+                raise StudyError([f"--coefficient: {item!r} is not ID=number"]) from None
+        else:
+            try:
+                coeffs = float(item)
+            except ValueError:
+                raise StudyError([f"--coefficient: {item!r} is not a number"]) from None
+    temps = args.temperature if args.temperature is not None else layer_mean_temperatures(study)
+    layers = [x.strip() for x in args.layers.split(",")] if args.layers else None
+    new = convert_conductivities(study.wall, temps, coefficients=coeffs, layers=layers)
+    rows = []
+    for a, b in zip(study.wall.layers, new.layers, strict=True):
+        if a.is_massless:
+            continue
+        rows.append({"layer": a.id, "from degC": a.reference_temperature, "to degC": b.reference_temperature,
+                     "lambda before": a.conductivity, "lambda after": b.conductivity})
+    print(table(pd.DataFrame(rows).set_index("layer"), "Conductivities (ISO 10456 temperature conversion)"))
+    from ..outputs import write_text_atomic
+
+    write_text_atomic(args.out, dump_wall(new, f"converted from {args.study} by wallcal convert-conductivity"))
+    print(f"\nwrote {args.out}")
+    return 0
