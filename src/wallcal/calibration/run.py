@@ -24,7 +24,7 @@ from ..simulation import Prepared, prepare, simulate
 from ..study import Study, dump_wall, load_wall
 from . import algorithms as alg
 from .objective import Evaluator
-from .space import ParameterSpace, parse_space
+from .space import ALGORITHMS, ParameterSpace, parse_space
 
 #: A target whose calibrated RMSE is this much below its noise floor is flagged (degC or W/m2 ...)
 FLOOR_MARGIN_ABS = 0.05
@@ -175,12 +175,10 @@ def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | No
     """
     space = space or parse_space(study)
     algorithm = algorithm or space.algorithm
-    if algorithm not in alg.__dict__.get("ALGORITHMS", ()) and algorithm not in (
-            "pso-hj", "least-squares", "differential-evolution", "nelder-mead", "cma-es"):
+    if algorithm not in ALGORITHMS:
         from ..errors import closest
 
-        raise StudyError([f"calibration.algorithm: unknown algorithm {algorithm!r}; "
-                          f"{closest(algorithm, ('pso-hj', 'least-squares', 'differential-evolution', 'nelder-mead', 'cma-es'))}"])
+        raise StudyError([f"calibration.algorithm: unknown algorithm {algorithm!r}; {closest(algorithm, ALGORITHMS)}"])
     user_settings = dict(space.settings if algorithm == space.algorithm else {})
     user_settings.update(settings or {})
     sett = alg.settings_for(algorithm, user_settings)
