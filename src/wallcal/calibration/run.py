@@ -268,10 +268,16 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
             notes.append(f"{name}: RMSE rose from {rm_base[name]:.3f} to {rm_opt[name]:.3f}: the objective traded "
                          "it against the other targets")
     x_base = space.base
+    at_bound = []
     for p, xo in zip(space.parameters, x_opt, strict=True):
-        if np.isclose(xo, p.lower, atol=1e-6 * p.span, rtol=0) or np.isclose(xo, p.upper, atol=1e-6 * p.span, rtol=0):
-            notes.append(f"{p.name} ended at a bound ({xo:.6g} in [{p.lower:.6g}, {p.upper:.6g}]): the data would "
-                         "move it further; check the bounds")
+        if np.isclose(xo, p.lower, atol=1e-6 * p.span, rtol=0):
+            at_bound.append(f"{p.name} (lower)")
+        elif np.isclose(xo, p.upper, atol=1e-6 * p.span, rtol=0):
+            at_bound.append(f"{p.name} (upper)")
+    if at_bound:
+        notes.append(f"{len(at_bound)} of {space.n} parameters ended at a bound: {', '.join(at_bound)}. The data "
+                     "would move them further, or they are not identified from these data (several walls fit "
+                     "equally well: see wallcal posterior); review the bounds before trusting these values")
     sim = {"base": base_res.simulated, "calibrated": opt_res.simulated}
     return CalibrationResult(
         study=study, space=space, algorithm=algorithm, settings=sett, seed=seed, x_base=x_base, x_opt=x_opt,
