@@ -135,6 +135,8 @@ class Recorder:
     t0: float = field(default_factory=time.perf_counter)
     seconds_before: float = 0.0
     phase: str = ""
+    autosave: bool = False
+    last_save: float = 0.0
 
     def __call__(self, U) -> np.ndarray:
         U = np.clip(np.atleast_2d(np.asarray(U, dtype=float)), 0.0, 1.0)
@@ -147,6 +149,8 @@ class Recorder:
         self.history.append((self.evaluations, self.elapsed, self.best_f))
         if self.progress:
             self.progress.update(f"{self.phase} evaluations {self.evaluations}, best {self.best_f:.6g}")
+        if self.autosave and time.perf_counter() - self.last_save > 2.0:
+            self.save(None)  # algorithms without a resumable state: keep the best point on disk
         return vals
 
     @property
@@ -170,6 +174,7 @@ class Recorder:
         tmp = self.checkpoint.with_name(self.checkpoint.name + ".tmp")
         tmp.write_text(json.dumps(data))
         os.replace(tmp, self.checkpoint)
+        self.last_save = time.perf_counter()
 
     def restore(self, data: dict):
         self.best_u = None if data.get("best_u") is None else np.array(data["best_u"])

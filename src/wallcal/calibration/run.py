@@ -198,7 +198,7 @@ def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | No
     meta = {"algorithm": algorithm, "seed": seed, "settings": sett, "parameters": space.names,
             "study_sha256": study.sha256}
     prog = alg.Progress(f"calibrate ({algorithm})", enabled=progress)
-    rec = alg.Recorder(f=f, n=space.n, progress=prog, checkpoint=ckpt, meta=meta)
+    rec = alg.Recorder(f=f, n=space.n, progress=prog, checkpoint=ckpt, meta=meta, autosave=algorithm != "pso-hj")
     state = None
     if resume:
         if ckpt is None or not ckpt.exists():
@@ -220,8 +220,7 @@ def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | No
             alg.pso_hj(rec, space.n, seed, sett, u0, residuals=residuals if space.objective in (
                 "cse", "weighted_cse") else None, state=state)
         elif algorithm == "least-squares":
-            start = rec.best_u if state else u0
-            alg.least_squares_only(rec, residuals, sett, start)
+            alg.least_squares_only(rec, residuals, sett, rec.best_u)
         elif algorithm == "differential-evolution":
             alg.differential_evolution(rec, space.n, seed, sett, rec.best_u)
         elif algorithm == "nelder-mead":
@@ -230,7 +229,8 @@ def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | No
             alg.cma_es(rec, space.n, seed, sett, rec.best_u)
     except KeyboardInterrupt:
         status = "interrupted"
-        rec.save({"phase": "interrupted"} if algorithm != "pso-hj" else None)
+        if algorithm != "pso-hj":  # pso-hj's checkpoint already holds its last complete generation
+            rec.save(None)
     prog.close(f"{rec.phase or algorithm}: {rec.evaluations} simulations, best {rec.best_f:.6g}, "
                f"{rec.elapsed:.1f} s ({status})")
     x_opt = space.from_unit(rec.best_u)
