@@ -9,8 +9,8 @@ import tomllib
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import EXAMPLE
 
+from conftest import EXAMPLE
 from wallcal import StudyError, load_study, load_wall
 from wallcal.calibration import calibrate, parse_space
 from wallcal.calibration.objective import Evaluator
