@@ -18,6 +18,7 @@ from .errors import WallcalError
 COMMAND_MODULES = (
     "wallcal.commands.simulate",
     "wallcal.commands.calibrate",
+    "wallcal.commands.run",
     "wallcal.commands.standards",
     "wallcal.commands.energyplus",
 )

@@ -1,0 +1,162 @@
+"""The HTML report of ``wallcal run``: one self-contained ``index.html`` (figures embedded).
+
+Readable by a building physicist who did not run the study: a summary first (what
+was measured, how well the base case fits, what calibration changed, how well each
+property is identified, the U-value and dynamic figures before and after), then one
+section per stage with its tables and figures, and where its machine-readable results are.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;color:#1d2329;background:#f6f7f9}
+header{background:#233044;color:#fff;padding:18px 32px}
+header h1{margin:0 0 4px 0;font-size:24px} header p{margin:2px 0;color:#c9d3e0;font-size:13px}
+main{max-width:1180px;margin:0 auto;padding:16px 32px 48px}
+nav{background:#fff;border:1px solid #dde2e8;border-radius:6px;padding:10px 16px;margin:14px 0}
+nav a{margin-right:14px;color:#2457a6;text-decoration:none;font-size:14px}
+section{background:#fff;border:1px solid #dde2e8;border-radius:6px;padding:14px 22px;margin:16px 0}
+h2{font-size:19px;margin:6px 0 10px} h3{font-size:15px;margin:14px 0 6px;color:#33414f}
+table{border-collapse:collapse;font-size:13px;margin:6px 0 12px}
+th,td{border-bottom:1px solid #e5e8ec;padding:3px 9px;text-align:right;white-space:nowrap}
+th{background:#f0f3f6;font-weight:600} td.l,th.l{text-align:left}
+figure{margin:8px 0 16px} figure img{max-width:100%;border:1px solid #e5e8ec}
+figcaption{font-size:13px;color:#4a5562;margin-top:4px}
+.status{display:inline-block;font-size:12px;padding:1px 8px;border-radius:10px;margin-left:8px;vertical-align:middle}
+.ok{background:#dff3e4;color:#1d6b35} .failed{background:#fbe1df;color:#9b2317} .skipped{background:#eceff3;color:#4a5562}
+.summary li{margin:5px 0} .files{font-size:12px;color:#5a6570} .note{color:#7a4a00}
+"""
+
+
+def _fmt(v) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        if math.isnan(v):
+            return "-"
+        if v != 0 and (abs(v) >= 1e5 or abs(v) < 1e-3):
+            return f"{v:.3e}"
+        if abs(v) >= 100:
+            return f"{v:.1f}"
+        return f"{v:.4g}"
+    return html.escape(str(v))
+
+
+def table_html(df: pd.DataFrame, percent: tuple[str, ...] = ()) -> str:
+    idx_names = [n for n in (df.index.names or []) if n] or [""]
+    head = "".join(f'<th class="l">{html.escape(str(n))}</th>' for n in idx_names)
+    head += "".join(f"<th>{html.escape(str(c))}{' %' if c in percent else ''}</th>" for c in df.columns)
+    rows = []
+    for idx, r in df.iterrows():
+        idx_t = idx if isinstance(idx, tuple) else (idx,)
+        cells = "".join(f'<td class="l">{html.escape(str(i))}</td>' for i in idx_t)
+        for c in df.columns:
+            v = r[c]
+            if c in percent and isinstance(v, (float, np.floating)) and not math.isnan(v):
+                cells += f"<td>{100 * float(v):.1f}</td>"
+            else:
+                cells += f"<td>{_fmt(v)}</td>"
+        rows.append(f"<tr>{cells}</tr>")
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
+
+
+def figure_html(title: str, path: Path) -> str:
+    path = Path(path)
+    if not path.exists():
+        return f'<p class="note">Figure missing: {html.escape(path.name)}</p>'
+    data = base64.b64encode(path.read_bytes()).decode()
+    return (f'<figure><img alt="{html.escape(title)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{html.escape(title)}</figcaption></figure>")
+
+
+def _summary(study, outputs) -> str:
+    by = {o.name: o for o in outputs}
+    items = []
+    d = by.get("data")
+    if d and d.status == "ok" and d.tables:
+        summ = d.tables[0][1]
+        temps = [s.name for s in study.sensors if s.quantity == "temperature"]
+        rng = ", ".join(f"{t} {summ.loc[t, 'min']:.1f}..{summ.loc[t, 'max']:.1f} degC" for t in temps if t in summ.index)
+        items.append(f"<b>Measured.</b> {html.escape(study.wall.name or 'The wall')}: {len(study.wall.layers)} layers, "
+                     f"{study.wall.thickness * 100:.1f} cm; probes {html.escape(rng)}; period {study.period.start} to "
+                     f"{study.period.end}.")
+    e = by.get("engines")
+    if e and e.status == "ok" and e.text:
+        items.append("<b>Base case.</b> " + html.escape(e.text[0]))
+    c = by.get("calibration")
+    if c and c.status == "ok":
+        items.append("<b>Calibration.</b> " + html.escape(c.text[0] if c.text else ""))
+        rm = c.tables[1][1]
+        parts = []
+        for sig, r in rm.iterrows():
+            floor = r.get("noise floor (reference wall)", float("nan"))
+            parts.append(f"{sig} {r['base']:.3f} -> {r['calibrated']:.3f}"
+                         + (f" (floor {floor:.3f})" if isinstance(floor, float) and not math.isnan(floor) else ""))
+        items.append("<b>RMSE before -> after.</b> " + html.escape("; ".join(parts)) + ".")
+    i = by.get("identifiability")
+    if i and i.status == "ok" and i.text:
+        items.append("<b>Identifiability.</b> " + html.escape(i.text[0]))
+    elif i:
+        items.append("<b>Identifiability.</b> not evaluated (" + html.escape(i.message or i.status) + ").")
+    s = by.get("standards")
+    if s and s.status == "ok" and s.tables:
+        wf = s.tables[0][1]
+        u = wf.loc[[r for r in wf.index if r.startswith("U ")][0]]
+        shift = wf.loc["time shift [h]"]
+        f = wf.loc["decrement factor [-]"]
+        txt = "; ".join(f"{col}: U {u[col]:.3f} W/(m2K), decrement factor {f[col]:.3f}, time shift {shift[col]:.1f} h"
+                        for col in wf.columns)
+        items.append("<b>Wall figures.</b> " + html.escape(txt) + ".")
+    failed = [o for o in outputs if o.status == "failed"]
+    if failed:
+        items.append('<span class="note"><b>Stages that failed:</b> ' + html.escape(
+            "; ".join(f"{o.title}: {o.message}" for o in failed)) + "</span>")
+    return "<ul class='summary'>" + "".join(f"<li>{x}</li>" for x in items) + "</ul>"
+
+
+def write_report(study, outputs, path: Path, seconds: float | None = None) -> Path:
+    """Write the self-contained HTML report."""
+    from . import __version__
+
+    nav = "".join(f'<a href="#{o.name}">{html.escape(o.title)}</a>' for o in outputs)
+    secs = []
+    for o in outputs:
+        body = [f'<h2 id="{o.name}">{html.escape(o.title)}<span class="status {o.status}">{o.status}</span></h2>']
+        if o.message:
+            body.append(f'<p class="note">{html.escape(o.message)}</p>')
+        body += [f"<p>{html.escape(t)}</p>" for t in o.text]
+        for title, df, pct in o.tables:
+            body.append(f"<h3>{html.escape(title)}</h3>{table_html(df, pct)}")
+        body += [figure_html(t, p) for t, p in o.figures]
+        if o.files:
+            body.append(f'<p class="files">Machine-readable results: {html.escape(o.name)}/'
+                        + ", ".join(html.escape(f) for f in o.files) + f" ({o.seconds:.1f} s)</p>")
+        secs.append(f"<section>{''.join(body)}</section>")
+    when = time.strftime("%Y-%m-%d %H:%M")
+    doc = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>wallcal report: {html.escape(study.name)}</title><style>{CSS}</style></head>
+<body><header><h1>{html.escape(study.name or 'wallcal study')}</h1>
+<p>{html.escape(study.description)}</p>
+<p>wallcal {html.escape(__version__)} &middot; {when} &middot; study {html.escape(str(study.path or ''))}
+(sha256 {html.escape(study.sha256[:12])})
+{f'&middot; {seconds:.0f} s' if seconds is not None else ''}</p></header>
+<main><nav>{nav}</nav>
+<section id="summary"><h2>Summary</h2>{_summary(study, outputs)}</section>
+{''.join(secs)}
+</main></body></html>
+"""
+    Path(path).write_text(doc, encoding="utf-8")
+    return Path(path)

