@@ -9,7 +9,7 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
 
 from .errors import DataError, EngineError, StudyError, WallcalError  # noqa: E402
 from .simulation import SimulationResult, prepare, simulate  # noqa: E402
-from .study import Study, load_study, load_wall  # noqa: E402
+from .study import Study, dump_wall, load_study, load_wall  # noqa: E402
 from .wall import Layer, Probe, Wall  # noqa: E402
 
 __all__ = [
@@ -23,6 +23,7 @@ __all__ = [
     "Wall",
     "WallcalError",
     "__version__",
+    "dump_wall",
     "load_study",
     "load_wall",
     "prepare",

@@ -19,6 +19,7 @@ COMMAND_MODULES = (
     "wallcal.commands.simulate",
     "wallcal.commands.calibrate",
     "wallcal.commands.run",
+    "wallcal.commands.serve",
     "wallcal.commands.standards",
     "wallcal.commands.energyplus",
 )

@@ -32,7 +32,8 @@ th{background:#f0f3f6;font-weight:600} td.l,th.l{text-align:left}
 figure{margin:8px 0 16px} figure img{max-width:100%;border:1px solid #e5e8ec}
 figcaption{font-size:13px;color:#4a5562;margin-top:4px}
 .status{display:inline-block;font-size:12px;padding:1px 8px;border-radius:10px;margin-left:8px;vertical-align:middle}
-.ok{background:#dff3e4;color:#1d6b35} .failed{background:#fbe1df;color:#9b2317} .skipped{background:#eceff3;color:#4a5562}
+.ok{background:#dff3e4;color:#1d6b35} .failed{background:#fbe1df;color:#9b2317}
+.skipped{background:#eceff3;color:#4a5562}
 .summary li{margin:5px 0} .files{font-size:12px;color:#5a6570} .note{color:#7a4a00}
 """
 
@@ -88,7 +89,8 @@ def _summary(study, outputs) -> str:
     if d and d.status == "ok" and d.tables:
         summ = d.tables[0][1]
         temps = [s.name for s in study.sensors if s.quantity == "temperature"]
-        rng = ", ".join(f"{t} {summ.loc[t, 'min']:.1f}..{summ.loc[t, 'max']:.1f} degC" for t in temps if t in summ.index)
+        rng = ", ".join(f"{t} {summ.loc[t, 'min']:.1f}..{summ.loc[t, 'max']:.1f} degC"
+                        for t in temps if t in summ.index)
         items.append(f"<b>Measured.</b> {html.escape(study.wall.name or 'The wall')}: {len(study.wall.layers)} layers, "
                      f"{study.wall.thickness * 100:.1f} cm; probes {html.escape(rng)}; period {study.period.start} to "
                      f"{study.period.end}.")

@@ -95,8 +95,8 @@ def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
                    f"sha256 {m.sha256[:12]}.")
     if len(m.spikes):
         m.spikes.to_csv(d / "spikes.csv", index=False)
-        so.text.append(f"{len(m.spikes)} single-sample spike(s) found and "
-                       + ("left out of the metrics." if study.data.remove_spikes else "kept (data.remove_spikes = false)."))
+        kept = "left out of the metrics." if study.data.remove_spikes else "kept (data.remove_spikes = false)."
+        so.text.append(f"{len(m.spikes)} single-sample spike(s) found and {kept}")
     if len(m.bridged_gaps):
         m.bridged_gaps.to_csv(d / "bridged_gaps.csv", index=False)
         so.text.append(f"{len(m.bridged_gaps)} gap(s) in boundary series bridged by linear interpolation.")
@@ -193,7 +193,9 @@ def _stage_crosscheck(ctx: RunContext, d: Path, so: StageOutput):
     rows = []
     targets = list(cal.space.targets)
     for label, wall in (("base case", ctx.study.wall), ("calibrated", cal.wall_opt)):
-        comp = compare_engines(ctx.study.replace(wall=wall), ctx.engines or ["fd-cn"])
+        comp = ctx.results.get("comparison") if label == "base case" else None  # the base case already ran
+        if comp is None:
+            comp = compare_engines(ctx.study.replace(wall=wall), ctx.engines or ["fd-cn"])
         for eng, r in comp.results.items():
             met = r.metrics.set_index("signal")
             rows.append({"wall": label, "engine": eng, **{f"RMSE {t}": met.loc[t, "rmse"] for t in targets}})

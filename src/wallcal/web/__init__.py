@@ -1,0 +1,1 @@
+"""The manual-calibration web page (``wallcal serve``)."""
