@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: install
-	$(BIN)/wallcal simulate src/wallcal/examples/campaign_a/study.toml --out out/campaign_a
+	$(BIN)/wallcal run src/wallcal/examples/campaign_a/study.toml --out out/campaign_a
 
 test: install
 	$(BIN)/python -m pytest -q
