@@ -13,3 +13,14 @@ def test_every_study_key_is_documented():
               study.BOUNDARY_KEYS, study.SENSOR_KEYS, study.PERIOD_KEYS, study.SIMULATION_KEYS]
     missing = sorted({k for t in tuples for k in t} - documented)
     assert not missing, f"undocumented study keys: {missing}"
+
+
+def test_every_calibration_key_and_setting_is_documented():
+    from wallcal.calibration import algorithms, space
+
+    doc = (REPO / "docs" / "calibration.md").read_text()
+    documented = set(re.findall(r"`([a-z_0-9-]+)`", doc))
+    keys = set(space.CALIBRATION_KEYS) | set(space.PARAMETER_KEYS) | set(space.OBJECTIVES) | set(space.ALGORITHMS)
+    keys |= set(algorithms.PSO_HJ_DEFAULTS)
+    missing = sorted(keys - documented)
+    assert not missing, f"undocumented calibration keys or settings: {missing}"
