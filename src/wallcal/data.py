@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import DataError, closest, require
-from .study import Study
+from .study import DataFileSpec, Study
 
 KELVIN = 273.15
 
@@ -116,9 +116,14 @@ def _numeric(series: pd.Series, col: str, path: Path) -> np.ndarray:
     return out
 
 
-def _timestamps(frame: pd.DataFrame, study: Study, path: Path) -> pd.DatetimeIndex:
+def _timestamps(frame: pd.DataFrame, study: Study, path: Path, time_column: str | None = None,
+                key: str = "data.time_column") -> pd.DatetimeIndex:
     spec = study.data
-    col = _column(frame, spec.time_column, "data.time_column", path)
+    if time_column is not None:
+        import dataclasses
+
+        spec = dataclasses.replace(spec, time_column=time_column)
+    col = _column(frame, spec.time_column, key, path)
     if spec.time_format == "elapsed_seconds":
         secs = _numeric(col, spec.time_column, path)
         if np.isnan(secs).any():
@@ -175,12 +180,15 @@ def _timestamps(frame: pd.DataFrame, study: Study, path: Path) -> pd.DatetimeInd
     return idx
 
 
-def _convert(values: np.ndarray, unit: str, positive: str) -> np.ndarray:
+def _convert(values: np.ndarray, unit: str, positive: str, offset: float = 0.0) -> np.ndarray:
+    """To wallcal's units and sign, then plus the study's declared ``offset``."""
     out = values.copy()
     if unit == "K":
         out = out - KELVIN
     if positive == "towards_exterior":
         out = -out
+    if offset:
+        out = out + offset
     return out
 
 
@@ -251,8 +259,102 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _study_columns(study: Study) -> dict[str, str]:
+    """Data column -> the study key that uses it."""
+    out = {}
+    for face, b in (("exterior", study.exterior), ("interior", study.interior)):
+        out.setdefault(b.column, f"boundary.{face}.column")
+    for i, s in enumerate(study.sensors):
+        out.setdefault(s.column, f"sensors[{i}].column")
+    return out
+
+
+def read_joined(study: Study) -> tuple[pd.DataFrame, list[str]]:
+    """Read ``[[data.files]]`` and join them on their timestamps.
+
+    Outer join: the result has every timestamp of any file; a column has a value only
+    at its own file's timestamps and is missing (NaN) elsewhere - nothing is
+    interpolated here. Sensors are then compared at their own timestamps only, and
+    boundary series are interpolated to the engine grid as for a single file (gaps up
+    to ``data.max_gap``). Only the columns the study uses are converted to numbers.
+
+    Returns
+    -------
+    frame : DataFrame
+        Index: the union of the timestamps; one float column per study column.
+    notes : list of str
+        How many timestamps each file has and how many are common to all.
+
+    Raises
+    ------
+    DataError
+        A missing file or column, a name given by two files, bad timestamps or values
+        (naming the file).
+    """
+    spec = study.data
+    wanted = _study_columns(study)
+    parts: list[pd.DataFrame] = []
+    owner: dict[str, str] = {}
+    available: list[str] = []
+    stamps = []
+    for i, f in enumerate(spec.files):
+        key = f"data.files[{i}]"
+        if not f.file.exists():
+            raise DataError(f"{key}.file: file not found: {f.file}")
+        raw = read_table(f.file, f.separator or spec.separator)
+        index = _timestamps(raw, study, f.file, f.time_column, f"{key}.time_column")
+        stamps.append(index)
+        pairs = _file_columns(f, raw, key)
+        cols: dict[str, np.ndarray] = {}
+        for name, col in pairs:
+            if name in owner:
+                raise DataError(f"{f.file}: column {col!r} would be named {name!r}, which {owner[name]} already "
+                                f"gives; use a prefix or a columns mapping in {key}")
+            owner[name] = f"{key} ({f.file.name})"
+            available.append(name)
+            if name in wanted:
+                cols[name] = _numeric(raw[col], col, f.file)
+        parts.append(pd.DataFrame(cols, index=index))
+    for col, key in wanted.items():
+        if col not in owner:
+            raise DataError(f"data.files: column {col!r} ({key}) is not given by any file; "
+                            f"{closest(col, available)}")
+    frame = pd.concat(parts, axis=1, join="outer", sort=True)
+    frame.index.name = "timestamp"
+    common = stamps[0]
+    for idx in stamps[1:]:
+        common = common.intersection(idx)
+    notes = [f"data.files: {len(spec.files)} files joined on their timestamps (outer join): {len(frame)} timestamps, "
+             f"{len(common)} present in every file"
+             + ("" if len(common) == len(frame) else "; values are compared only at their own file's timestamps")]
+    return frame, notes
+
+
+def _file_columns(f: DataFileSpec, raw: pd.DataFrame, key: str) -> list[tuple[str, str]]:
+    """(name in the study, column in the file) for one of ``[[data.files]]``."""
+    if f.columns is not None:
+        for name, col in f.columns:
+            if col not in raw.columns:
+                raise DataError(f"{f.file}: column {col!r} ({key}.columns.{name}) not found; "
+                                f"{closest(col, list(raw.columns))}")
+        return list(f.columns)
+    return [(f.prefix + c, c) for c in raw.columns if c != f.time_column]
+
+
+def data_sha256(study: Study) -> str:
+    """Hash of the study's data: the file's, or for ``[[data.files]]`` the hash of the files' hashes in order."""
+    paths = study.data.paths
+    if len(paths) == 1 and not study.data.files:
+        return file_sha256(paths[0])
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(file_sha256(p).encode())
+    return h.hexdigest()
+
+
 def load_measurements(study: Study) -> Measurements:
-    """Read the study's data file and map it onto the study.
+    """Read the study's data file (or its ``[[data.files]]``, joined on their timestamps) and map it onto
+    the study.
 
     Raises
     ------
@@ -262,16 +364,22 @@ def load_measurements(study: Study) -> Measurements:
         boundary series longer than ``data.max_gap``.
     """
     spec = study.data
-    path = spec.file
-    raw = read_table(path, spec.separator)
-    index = _timestamps(raw, study, path)
+    notes: list[str] = []
+    if spec.files:
+        raw, notes = read_joined(study)
+        index = pd.DatetimeIndex(raw.index)
+        path = "data.files (" + ", ".join(f.file.name for f in spec.files) + ")"
+    else:
+        path = spec.file
+        raw = read_table(path, spec.separator)
+        index = _timestamps(raw, study, path)
     cols: dict[str, np.ndarray] = {}
     for face, b in (("exterior", study.exterior), ("interior", study.interior)):
         vals = _numeric(_column(raw, b.column, f"boundary.{face}.column", path), b.column, path)
-        cols[face] = _convert(vals, b.unit, b.positive)
+        cols[face] = _convert(vals, b.unit, b.positive, b.offset)
     for i, s in enumerate(study.sensors):
         vals = _numeric(_column(raw, s.column, f"sensors[{i}].column", path), s.column, path)
-        cols[s.name] = _convert(vals, s.unit, s.positive)
+        cols[s.name] = _convert(vals, s.unit, s.positive, s.offset)
     frame = pd.DataFrame(cols, index=index)
     frame.index.name = "timestamp"
 
@@ -306,6 +414,10 @@ def load_measurements(study: Study) -> Measurements:
     for face, b in (("exterior", study.exterior), ("interior", study.interior)):
         v = frame[face].to_numpy()
         inside = (index >= warm) & (index <= end)
+        if spec.files:
+            # joined files need not share stamps: a boundary sample up to max_gap outside the period bridges its ends
+            margin = pd.Timedelta(seconds=spec.max_gap)
+            inside = (index >= warm - margin) & (index <= end + margin)
         ok = np.isfinite(v) & inside
         if not ok.any():
             raise DataError(f"{path}: column {b.column!r} (boundary.{face}) has no value in the period")
@@ -323,7 +435,8 @@ def load_measurements(study: Study) -> Measurements:
                 )
             gap_rows.append((b.column, a, c, secs))
     gaps = pd.DataFrame(gap_rows, columns=["signal", "start", "end", "seconds"])
-    return Measurements(frame=frame, spikes=spikes, bridged_gaps=gaps, source=path, sha256=file_sha256(path))
+    return Measurements(frame=frame, spikes=spikes, bridged_gaps=gaps, source=spec.file, sha256=data_sha256(study),
+                        notes=notes)
 
 
 def summarize(frame: pd.DataFrame, start, end) -> pd.DataFrame:

@@ -173,16 +173,17 @@ class SimulationResult:
 
 
 def manifest_of(study: Study, command: str) -> dict:
-    """Traceability entries for an output directory."""
-    from .data import file_sha256
+    """Traceability entries for an output directory: wallcal version (added by the writer), the study
+    file's hash and the input data's hash (all data files for multi-file data)."""
+    from .data import data_sha256
 
-    data_hash = None
     try:
-        data_hash = file_sha256(study.data.file)
+        data_hash = data_sha256(study)
     except OSError:
-        pass
+        data_hash = None
     return {"command": command, "study_file": str(study.path) if study.path else None,
-            "study_sha256": study.sha256, "data_file": str(study.data.file), "data_sha256": data_hash}
+            "study_sha256": study.sha256, "data_files": [str(p) for p in study.data.paths],
+            "data_sha256": data_hash}
 
 
 def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> SimulationResult:

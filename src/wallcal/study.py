@@ -37,7 +37,9 @@ class BoundarySpec:
 
     ``type``: surface_temperature | air_temperature | heat_flux; ``column``: data
     column; ``surface_coefficient`` [W/(m2K)] for air_temperature; ``unit``:
-    degC | K for temperatures; ``positive``: direction of a heat-flux column.
+    degC | K for temperatures; ``positive``: direction of a heat-flux column;
+    ``offset``: added to the column after the unit and sign conversion (a declared
+    sensor correction, degC or W/m2).
     """
 
     face: str
@@ -46,6 +48,7 @@ class BoundarySpec:
     surface_coefficient: float | None = None
     unit: str = "degC"
     positive: str = "towards_interior"
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -54,7 +57,8 @@ class SensorSpec:
 
     ``quantity``: temperature (``name`` is a probe of the wall) or heat_flux (at
     ``face``). ``accuracy`` [degC or W/m2] or ``accuracy_relative`` [-].
-    ``weight`` [-] enters weighted objectives.
+    ``weight`` [-] enters weighted objectives. ``offset`` is added to the column after
+    the unit and sign conversion.
     """
 
     name: str
@@ -66,11 +70,32 @@ class SensorSpec:
     unit: str = "degC"
     positive: str = "towards_interior"
     weight: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class DataFileSpec:
+    """One file of a multi-file data set (``[[data.files]]``).
+
+    ``columns``: ``(name_in_study, column_in_file)`` pairs (only these columns are
+    taken), or ``None`` to take every column but the time column, each named
+    ``prefix + column_in_file``.
+    """
+
+    file: Path
+    time_column: str = "timestamp"
+    columns: tuple[tuple[str, str], ...] | None = None
+    prefix: str = ""
+    separator: str | None = None
 
 
 @dataclass(frozen=True)
 class DataSpec:
-    """Where and how the monitoring data are read."""
+    """Where and how the monitoring data are read.
+
+    One file (``file``) or several (``files``, joined on their timestamps; ``file`` is
+    then the folder of the first one, for messages).
+    """
 
     file: Path
     time_column: str = "timestamp"
@@ -81,6 +106,12 @@ class DataSpec:
     separator: str | None = None
     remove_spikes: bool = True
     spike_sigma: float = 8.0
+    files: tuple[DataFileSpec, ...] = ()
+
+    @property
+    def paths(self) -> tuple[Path, ...]:
+        """Every data file read (one, or each of ``files``)."""
+        return tuple(f.file for f in self.files) if self.files else (self.file,)
 
 
 @dataclass(frozen=True)
@@ -242,6 +273,9 @@ def _check_number(v, path, problems, *, gt=None, ge=None, le=None, lt=None, inte
         return None
     if isinstance(v, float) and not math.isfinite(v):
         problems.add(path, f"must be a finite number, got {v}")
+        return None
+    if isinstance(v, int) and abs(v) > 10**15:  # float(v) would overflow for TOML's unbounded integers
+        problems.add(path, "is out of any physical range, got an integer beyond 1e15")
         return None
     if integer and not float(v).is_integer():
         problems.add(path, f"must be a whole number, got {v}")
@@ -451,12 +485,57 @@ def _read_toml(path: Path) -> dict:
 TOP_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation", "calibration")
 STUDY_KEYS = ("name", "description")
 DATA_KEYS = ("file", "time_column", "time_format", "start", "utc_offset", "max_gap", "separator",
-             "remove_spikes", "spike_sigma")
-BOUNDARY_KEYS = ("type", "column", "surface_coefficient", "unit", "positive")
+             "remove_spikes", "spike_sigma", "files")
+DATA_FILE_KEYS = ("file", "time_column", "columns", "prefix", "separator")
+BOUNDARY_KEYS = ("type", "column", "surface_coefficient", "unit", "positive", "offset")
 SENSOR_KEYS = ("name", "column", "quantity", "face", "accuracy", "accuracy_relative", "unit", "positive",
-               "weight")
+               "weight", "offset")
 PERIOD_KEYS = ("warmup_start", "start", "end")
 SIMULATION_KEYS = ("engine", "time_step", "grid_constant", "node_rule", "stiff_limit")
+
+
+def _parse_data_files(dt_: _Table, problems: _Problems, base_dir: Path | None) -> tuple[DataFileSpec, ...]:
+    """``[[data.files]]``: several files joined on their timestamps."""
+    default_time = dt_.raw("time_column", "timestamp")
+    default_time = default_time if isinstance(default_time, str) else "timestamp"
+    out: list[DataFileSpec] = []
+    names: dict[str, str] = {}
+    tables = dt_.tables("files", DATA_FILE_KEYS)
+    if isinstance(dt_.raw("files"), list) and not dt_.raw("files"):
+        problems.add(dt_._p("files"), "list at least one file")
+    for ft in tables:
+        fname = ft.str("file")
+        time_col = ft.str("time_column", default_time)
+        prefix = ft.str("prefix", "")
+        sep = ft.str("separator", None)
+        columns = None
+        if ft.has("columns"):
+            cols = ft.raw("columns")
+            if ft.has("prefix"):
+                problems.add(ft.path, "give columns (a mapping) or prefix, not both")
+            if not isinstance(cols, dict) or not cols:
+                problems.add(ft._p("columns"), "must be a non-empty table { name_in_study = \"column_in_file\" }, "
+                             f"got {_describe(cols)}")
+            else:
+                pairs = []
+                for k, v in cols.items():
+                    if not isinstance(v, str) or not v:
+                        problems.add(f"{ft._p('columns')}.{k}", f"must be a column name (a string), got {_describe(v)}")
+                        continue
+                    if time_col is not None and v == time_col:
+                        problems.add(f"{ft._p('columns')}.{k}", f"{v!r} is the file's time column")
+                        continue
+                    if k in names:
+                        problems.add(f"{ft._p('columns')}.{k}", f"the name {k!r} is already taken by {names[k]}")
+                        continue
+                    names[k] = f"{ft.path} ({fname})"
+                    pairs.append((k, v))
+                columns = tuple(pairs)
+        if fname is None or time_col is None:
+            continue
+        out.append(DataFileSpec(file=(base_dir / fname) if base_dir else Path(fname), time_column=time_col,
+                                columns=columns, prefix=prefix or "", separator=sep))
+    return tuple(out)
 
 
 def load_study(path: str | Path) -> Study:
@@ -497,7 +576,14 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
     dt_ = top.table("data", DATA_KEYS)
     data = None
     if dt_:
-        fname = dt_.str("file")
+        files: tuple[DataFileSpec, ...] = ()
+        if dt_.has("files"):
+            fname = None
+            if dt_.has("file"):
+                problems.add(dt_._p("file"), "give either data.file (one file) or [[data.files]] (several), not both")
+            files = _parse_data_files(dt_, problems, base_dir)
+        else:
+            fname = dt_.str("file")
         time_format = dt_.str("time_format", "iso", choices=TIME_FORMATS)
         start = dt_.datetime("start", None)
         if time_format == "elapsed_seconds" and start is None and dt_.ok:
@@ -509,8 +595,13 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
                 _dt.datetime.strptime(utc_offset.replace("Z", "+00:00"), "%z")
             except ValueError:
                 problems.add(dt_._p("utc_offset"), f"must look like \"+01:00\", got {utc_offset!r}")
+        if files:
+            data_file = files[0].file.parent
+        else:
+            data_file = (base_dir / fname) if (fname and base_dir) else Path(fname or "")
         data = DataSpec(
-            file=(base_dir / fname) if (fname and base_dir) else Path(fname or ""),
+            file=data_file,
+            files=files,
             time_column=dt_.str("time_column", "timestamp") or "timestamp",
             time_format=time_format or "iso",
             start=start,
@@ -544,9 +635,11 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             positive = ft.str("positive", "towards_interior", choices=FLUX_DIRECTIONS)
             if ft.has("positive") and btype != "heat_flux":
                 problems.add(ft._p("positive"), "only for type = \"heat_flux\"")
+            offset = ft.num("offset", 0.0, ge=-1e6, le=1e6)
             if btype and col:
                 bounds[face] = BoundarySpec(face=face, type=btype, column=col, surface_coefficient=h,
-                                            unit=unit or "degC", positive=positive or "towards_interior")
+                                            unit=unit or "degC", positive=positive or "towards_interior",
+                                            offset=offset or 0.0)
         if all(b is not None and b.type == "heat_flux" for b in bounds.values()):
             problems.add("boundary", "heat-flux boundaries on both faces leave the temperature level undetermined: "
                          "impose a temperature on at least one face")
@@ -562,6 +655,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         acc = sn.num("accuracy", None, gt=0.0)
         accr = sn.num("accuracy_relative", None, gt=0.0, lt=1.0)
         weight = sn.num("weight", 1.0, ge=0.0)
+        offset = sn.num("offset", 0.0, ge=-1e6, le=1e6)
         positive = sn.str("positive", "towards_interior", choices=FLUX_DIRECTIONS)
         if quantity == "heat_flux":
             unit = sn.str("unit", "W/m2", choices=("W/m2",))
@@ -585,7 +679,8 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         if sname and col and quantity:
             sensors.append(SensorSpec(name=sname, column=col, quantity=quantity, face=face, accuracy=acc,
                                       accuracy_relative=accr, unit=unit or "degC",
-                                      positive=positive or "towards_interior", weight=weight))
+                                      positive=positive or "towards_interior", weight=weight,
+                                      offset=offset or 0.0))
     if top.has("sensors") and isinstance(top.raw("sensors"), list) and not top.raw("sensors"):
         problems.add("sensors", "list at least one sensor to compare with")
 
