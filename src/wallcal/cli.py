@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "wallcal.commands.serve",
     "wallcal.commands.standards",
     "wallcal.commands.energyplus",
+    "wallcal.commands.analysis",
 )
 
 

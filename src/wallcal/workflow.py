@@ -141,16 +141,30 @@ def _stage_grid(ctx: RunContext, d: Path, so: StageOutput):
     from .analysis.gridstudy import grid_study
 
     kw = {"time_steps": (60, 300, 900), "grid_constants": (1, 2, 3)} if ctx.quick else {}
-    res = grid_study(ctx.study, **kw)
-    _report_analysis(res, d, so)
+    targets = list(ctx.study.calibration.get("targets") or []) or None
+    res = grid_study(ctx.study, targets=targets, **kw)
+    res.write_into(d)
+    so.files += ["grid_study.csv", "rmse_vs_time_step.csv", "convergence.csv", "grid_study.json", "grid_study.png"]
+    so.text += res.summary().splitlines()
+    so.tables.append(("RMSE against the time step for each grid constant C (Fig. 4 as numbers)", res.rmse_table(), ()))
+    so.figures.append(("RMSE against the time step for C = 1, 2, 3 (Fig. 4)", d / "grid_study.png"))
     ctx.results["grid"] = res
 
 
 def _stage_sensitivity(ctx: RunContext, d: Path, so: StageOutput):
     from .analysis.sensitivity import sensitivity
 
-    res = sensitivity(ctx.study, method="oat", prepared=ctx.prepared)
-    _report_analysis(res, d, so)
+    if not ctx.study.calibration:
+        so.status, so.message = "skipped", "the study has no [calibration] table"
+        return
+    res = sensitivity(ctx.study, method="oat", prepared=ctx.prepared, progress=False)
+    res.write_into(d)
+    so.files += ["sensitivity_oat.csv", "sensitivity_oat_per_target.csv", "sensitivity_oat_by_layer.csv",
+                 "sensitivity.json", "sensitivity_oat.png"]
+    so.text += res.summary().splitlines()
+    so.tables.append(("Ranking of the calibration parameters (one at a time, each to its bounds)", res.ranking, ()))
+    so.tables.append(("Influence summed per layer", res.by_layer, ()))
+    so.figures.append(("One-at-a-time sensitivity", d / "sensitivity_oat.png"))
     ctx.results["sensitivity"] = res
 
 
@@ -256,21 +270,25 @@ def _stage_standards(ctx: RunContext, d: Path, so: StageOutput):
 def _stage_identifiability(ctx: RunContext, d: Path, so: StageOutput):
     from .analysis.identifiability import identifiability
 
+    if not ctx.study.calibration:
+        so.status, so.message = "skipped", "the study has no [calibration] table"
+        return
     cal = ctx.results.get("calibration")
-    res = identifiability(ctx.study, x=None if cal is None else cal.x_opt, prepared=ctx.prepared)
-    _report_analysis(res, d, so)
+    res = identifiability(ctx.study, x0=None if cal is None else cal.x_opt,
+                          at="base case" if cal is None else "calibrated optimum", prepared=ctx.prepared)
+    res.write_into(d)
+    so.files += ["identifiability.json", "targets_comparison.csv", "singular_values.png"]
+    a = res.main
+    flat = [f"{k}: {r['in words']}" for k, r in a.flat.iterrows()] if len(a.flat) else []
+    so.text.append(f"{a.rank} of {a.n} parameter directions are identifiable from {'+'.join(a.targets)} at the "
+                   f"{res.at}" + (f"; flat directions: {'; '.join(flat)}" if flat else "; no flat direction") + ".")
+    so.text += list(res.notes)
+    so.tables.append(("Rank and the effect of adding heat-flux sensors", res.comparison(), ()))
+    so.tables.append(("Per parameter (local analysis)", a.parameters, ()))
+    if len(a.combos):
+        so.tables.append(("Physical combinations", a.combos, ()))
+    so.figures.append(("Singular values of the scaled Jacobian", d / "singular_values.png"))
     ctx.results["identifiability"] = res
-
-
-def _report_analysis(res, d: Path, so: StageOutput):
-    """Common hand-over of an analysis result object (tables, figures, text, files)."""
-    files = res.write_into(d) if hasattr(res, "write_into") else []
-    so.files += list(files or [])
-    for t in getattr(res, "report_tables", lambda: [])():
-        so.tables.append(t if len(t) == 3 else (t[0], t[1], ()))
-    for title, name in getattr(res, "report_figures", lambda: [])():
-        so.figures.append((title, d / name))
-    so.text += list(getattr(res, "report_text", lambda: [])())
 
 
 STAGES = [
