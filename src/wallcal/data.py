@@ -113,6 +113,11 @@ def _numeric(series: pd.Series, col: str, path: Path) -> np.ndarray:
     if np.isinf(out).any():
         i = int(np.flatnonzero(np.isinf(out))[0])
         raise DataError(f"{path}: column {col!r} has an infinite value at data row {i + 1} (line {i + 2})")
+    huge = np.abs(out) > 1e15  # beyond any physical reading; squares of such values overflow in the metrics
+    if huge.any():
+        i = int(np.flatnonzero(huge)[0])
+        raise DataError(f"{path}: column {col!r} has a value out of any physical range, {out[i]:g}, at data row "
+                        f"{i + 1} (line {i + 2})")
     return out
 
 
@@ -129,7 +134,12 @@ def _timestamps(frame: pd.DataFrame, study: Study, path: Path, time_column: str 
         if np.isnan(secs).any():
             i = int(np.flatnonzero(np.isnan(secs))[0])
             raise DataError(f"{path}: column {spec.time_column!r} is empty at data row {i + 1} (line {i + 2})")
-        idx = pd.DatetimeIndex(pd.Timestamp(spec.start) + pd.to_timedelta(secs, unit="s"))
+        try:
+            idx = pd.DatetimeIndex(pd.Timestamp(spec.start) + pd.to_timedelta(secs, unit="s"))
+        except (OverflowError, pd.errors.OutOfBoundsTimedelta, pd.errors.OutOfBoundsDatetime) as exc:
+            raise DataError(f"{path}: column {spec.time_column!r} has elapsed seconds that put the timestamps "
+                            f"outside the years 1677-2262 (from {np.nanmin(secs):g} to {np.nanmax(secs):g} s after "
+                            "data.start)") from exc
     else:
         text = col.astype(str).str.strip()
         try:
