@@ -148,3 +148,10 @@ def test_empty_and_non_utf8_files(tmp_path):
         load_measurements(study_with(tmp_path, text=b"timestamp,TSe\n2025-01-01T00:00:00,\xff\xfe\n"))
     with pytest.raises(DataError, match="header but no data rows"):
         load_measurements(study_with(tmp_path, text="timestamp,TSe,TSi\n"))
+
+
+def test_too_small_time_step_is_a_clear_error(example_study):
+    from wallcal import StudyError, prepare
+
+    with pytest.raises(StudyError, match="simulation.time_step: 0.001 s gives"):
+        prepare(example_study, time_step=0.001)

@@ -252,8 +252,6 @@ def test_cli_data_errors_one_line(kind, tmp_path, capsys):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]  # no temporary dir or lock left
 
 
-@pytest.mark.xfail(strict=True, reason="data.py does not check temperatures against absolute zero: a boundary "
-                   "column at -10000 degC simulates without complaint")
 def test_temperature_below_absolute_zero_is_rejected(tmp_path):
     rows = copy.deepcopy(ROWS)
     for k in range(150, 170):

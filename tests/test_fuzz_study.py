@@ -320,8 +320,6 @@ def test_cli_reports_one_line_without_traceback(case, tmp_path, capsys):
     assert rest == [] or first.endswith("problems:"), err
 
 
-@pytest.mark.xfail(strict=True, reason="a layer with one bad value is dropped, so the wall looks thinner and "
-                   "probes/sensors behind it get spurious follow-up problems (study.py _parse_wall)")
 def test_one_bad_layer_value_gives_one_problem():
     raw = copy.deepcopy(RAW)
     _set(raw, "wall.layers[0].density", math.nan)

@@ -202,6 +202,16 @@ def _convert(values: np.ndarray, unit: str, positive: str, offset: float = 0.0) 
     return out
 
 
+def _check_temperature(values_C: np.ndarray, col: str, unit: str, path) -> None:
+    """Temperatures below absolute zero are a unit or logger error, never data."""
+    bad = values_C < -KELVIN
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        hint = " (is the column in kelvin? say unit = \"K\")" if unit == "degC" else ""
+        raise DataError(f"{path}: column {col!r} holds a temperature below absolute zero at data row {i + 1} "
+                        f"(line {i + 2}): {values_C[i] + (KELVIN if unit == 'K' else 0):g} {unit}{hint}")
+
+
 # ---------------------------------------------------------------------------- spikes and gaps
 def detect_spikes(values: np.ndarray, sigma: float = 8.0) -> np.ndarray:
     """Single-sample spikes: a value far from both neighbours, which agree with each other.
@@ -387,9 +397,13 @@ def load_measurements(study: Study) -> Measurements:
     for face, b in (("exterior", study.exterior), ("interior", study.interior)):
         vals = _numeric(_column(raw, b.column, f"boundary.{face}.column", path), b.column, path)
         cols[face] = _convert(vals, b.unit, b.positive, b.offset)
+        if b.type != "heat_flux":
+            _check_temperature(cols[face], b.column, b.unit, path)
     for i, s in enumerate(study.sensors):
         vals = _numeric(_column(raw, s.column, f"sensors[{i}].column", path), s.column, path)
         cols[s.name] = _convert(vals, s.unit, s.positive, s.offset)
+        if s.quantity == "temperature":
+            _check_temperature(cols[s.name], s.column, s.unit, path)
     frame = pd.DataFrame(cols, index=index)
     frame.index.name = "timestamp"
 

@@ -26,6 +26,9 @@ from .engines.base import BoundaryInput, EngineOutput, SimulationInput
 from .errors import StudyError
 from .study import Study
 
+#: Most time steps one simulation may take (a 10-year record at 10 s is about 31 million).
+MAX_STEPS = 50_000_000
+
 
 @dataclass
 class Prepared:
@@ -98,6 +101,9 @@ def prepare(study: Study, engine: str | None = None, *, time_step: float | None 
     t0 = pd.Timestamp(p.warmup_start) if p.warmup_start else frame.index[0]
     start, end = pd.Timestamp(p.start), pd.Timestamp(p.end)
     n_steps = int(math.ceil((end - t0).total_seconds() / dt - 1e-9))
+    if n_steps > MAX_STEPS:
+        raise StudyError([f"simulation.time_step: {dt:g} s gives {n_steps:,} steps from {t0} to {end}, more than "
+                          f"{MAX_STEPS:,}; use a larger time step or a shorter period"])
     grid_s = np.arange(n_steps + 1) * dt
     t_s = (frame.index - t0).total_seconds().to_numpy()
 

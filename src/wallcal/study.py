@@ -346,6 +346,7 @@ def _parse_wall(t: _Table, problems: _Problems, base_dir: Path | None) -> Wall |
             return None
     layers: list[Layer] = []
     ids: set[str] = set()
+    geometry_thickness = 0.0
     for lt in t.tables("layers", LAYER_KEYS):
         lid = lt.data.get("id")
         if isinstance(lid, int) and not isinstance(lid, bool):
@@ -361,6 +362,8 @@ def _parse_wall(t: _Table, problems: _Problems, base_dir: Path | None) -> Wall |
         massless = lt.has("thermal_resistance")
         thickness = lt.num("thickness", 0.0 if massless else _MISSING, ge=0.0 if massless else None,
                            gt=None if massless else 0.0)
+        if thickness is not None:
+            geometry_thickness += thickness  # probes are checked against every valid thickness
         kw: dict[str, Any] = {}
         if massless:
             kw["thermal_resistance"] = lt.num("thermal_resistance", gt=0.0)
@@ -394,7 +397,7 @@ def _parse_wall(t: _Table, problems: _Problems, base_dir: Path | None) -> Wall |
                             **{k: v for k, v in kw.items() if v is not None or k == "conductivity_table"}))
     if t.has("layers") and isinstance(t.raw("layers"), list) and not t.raw("layers"):
         problems.add(t._p("layers"), "the wall needs at least one layer")
-    total = sum(layer.thickness for layer in layers)
+    total = geometry_thickness  # also counts layers dropped for another bad value: no follow-up problems
     probes: list[Probe] = []
     names: set[str] = set()
     for pt in t.tables("probes", PROBE_KEYS, required=False):
