@@ -27,8 +27,8 @@ def resistance_matrix(r):
     return np.array([[1.0, -r], [0.0, 1.0]], dtype=complex)
 
 
-def periodic_solution(wall, period_s, amp_e, amp_i, depths):
-    """Complex amplitudes of T at ``depths`` and of q at both faces.
+def periodic_solution(wall, period_s, amp_e, amp_i, depths, with_flux=False):
+    """Complex amplitudes of T at ``depths`` (with ``with_flux``: rows (T, q)) and of q at both faces.
 
     Surface temperatures T_e(t) = Re(amp_e e^{i w t}), T_i(t) = Re(amp_i e^{i w t}).
     Contact resistances of layers are included (a probe at such an interface reads the exterior side).
@@ -71,6 +71,6 @@ def periodic_solution(wall, period_s, amp_e, amp_i, depths):
                 break
             else:
                 break
-        out.append(state[0])
+        out.append(state if with_flux else state[0])
     q_i = total[1, 0] * amp_e + total[1, 1] * q_e
     return np.array(out), q_e, q_i

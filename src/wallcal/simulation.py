@@ -25,6 +25,7 @@ from .engines import get_engine, scheme_of
 from .engines.base import BoundaryInput, EngineOutput, SimulationInput
 from .errors import StudyError
 from .study import Study
+from .wall import Probe
 
 #: Most time steps one simulation may take (a 10-year record at 10 s is about 31 million).
 MAX_STEPS = 50_000_000
@@ -55,17 +56,22 @@ class Prepared:
 
     @property
     def sensor_outputs(self) -> list[tuple[str, str, str]]:
-        """(sensor name, kind, key) with kind 'probe' or 'flux' and key the probe name or face."""
+        """(sensor name, kind, key): kind 'probe' (key: probe name), 'flux' (key: face) or 'flux_depth'
+        (key: the sensor name; see :func:`flux_at_depth`)."""
         out = []
         for s in self.study.sensors:
             if s.quantity == "heat_flux":
-                out.append((s.name, "flux", s.face))
+                out.append((s.name, "flux_depth", s.name) if s.depth is not None else (s.name, "flux", s.face))
             else:
                 out.append((s.name, "probe", s.name))
         return out
 
     def with_wall(self, wall) -> Prepared:
-        return dataclasses.replace(self, inp=dataclasses.replace(self.inp, wall=wall))
+        """The same data with another wall (same layer structure); hidden flux probes are kept."""
+        names = {p.name for p in wall.probes}
+        hidden = tuple(p for p in self.inp.wall.probes if p.name.startswith("__") and p.name not in names)
+        return dataclasses.replace(self, inp=dataclasses.replace(self.inp, wall=wall.replace(
+            probes=wall.probes + hidden)))
 
 
 def prepare(study: Study, engine: str | None = None, *, time_step: float | None = None,
@@ -119,9 +125,16 @@ def prepare(study: Study, engine: str | None = None, *, time_step: float | None 
     measured = frame.loc[in_period, [s.name for s in study.sensors]]
     positions = (times - t0).total_seconds().to_numpy() / dt
     probes = tuple(s.name for s in study.sensors if s.quantity == "temperature")
-    faces = tuple(dict.fromkeys(s.face for s in study.sensors if s.quantity == "heat_flux"))
+    faces = tuple(dict.fromkeys(s.face for s in study.sensors if s.quantity == "heat_flux" and s.depth is None))
+    wall = study.wall
+    for s in study.sensors:  # a heat flux inside the wall is read from three hidden probes around its depth
+        if s.quantity == "heat_flux" and s.depth is not None:
+            extra = tuple(Probe(n, d) for n, d in zip(flux_probe_names(s.name), flux_probe_depths(wall, s.depth),
+                                                       strict=True))
+            wall = wall.replace(probes=wall.probes + extra)
+            probes += tuple(p.name for p in extra)
     inp = SimulationInput(
-        wall=study.wall, t0=t0, time_step=dt, exterior=ext, interior=intr, output_positions=positions,
+        wall=wall, t0=t0, time_step=dt, exterior=ext, interior=intr, output_positions=positions,
         probes=probes, flux_faces=faces, grid_constant=C, node_rule=node_rule or sim.node_rule,
         scheme=scheme_of(engine), options={"stiff_limit": sim.stiff_limit},
     )
@@ -197,7 +210,13 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     study = prep.study
     sim = {}
     for name, kind, key in prep.sensor_outputs:
-        sim[name] = out.temperatures[key] if kind == "probe" else out.fluxes[key]
+        if kind == "probe":
+            sim[name] = out.temperatures[key]
+        elif kind == "flux":
+            sim[name] = out.fluxes[key]
+        else:
+            t_m, t_0, t_p = (out.temperatures[n] for n in flux_probe_names(key))
+            sim[name] = flux_at_depth(prep.inp.wall, study.sensor(key).depth, t_m, t_0, t_p)
     simulated = pd.DataFrame(sim, index=prep.times)
     acc = {s.name: (s.accuracy, s.accuracy_relative) for s in study.sensors}
     met = _metrics.table(prep.measured, simulated, acc)
@@ -217,6 +236,52 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     return SimulationResult(study=study, engine=engine, measured=prep.measured.copy(), simulated=simulated,
                             metrics=met, summary=summ, info=info, spikes=prep.measurements.spikes,
                             bridged_gaps=prep.measurements.bridged_gaps)
+
+
+#: Half-distance [m] of the hidden probes that read a heat flux inside the wall
+FLUX_PROBE_SPACING = 1e-3
+
+
+def flux_probe_names(sensor: str) -> tuple[str, str, str]:
+    """Names of the hidden probes behind a heat-flux sensor inside the wall."""
+    return (f"__{sensor}__minus", f"__{sensor}__at", f"__{sensor}__plus")
+
+
+def flux_probe_depths(wall, depth: float) -> tuple[float, float, float]:
+    """Depths [m] of the hidden probes: depth - h, depth, depth + h (h = 1 mm, inside the wall)."""
+    h = FLUX_PROBE_SPACING
+    return (max(depth - h, 0.0), depth, min(depth + h, wall.thickness))
+
+
+def _layer_conductivity(wall, x: float, temperature):
+    """Conductivity [W/(m K)] at depth x (a point inside one layer) and temperature [degC] (scalar or array)."""
+    bounds = wall.interfaces
+    i = int(np.clip(np.searchsorted(bounds, x, side="right") - 1, 0, len(wall.layers) - 1))
+    layer = wall.layers[i]
+    if layer.is_massless:
+        return layer.thickness / layer.thermal_resistance if layer.thickness > 0 else np.inf
+    return layer.conductivity_at(temperature)
+
+
+def flux_at_depth(wall, depth: float, t_minus, t_at, t_plus):
+    """Heat flux density [W/m2], positive towards the interior, at ``depth`` inside the wall.
+
+    From the temperatures of three probes at depth - h, depth and depth + h (linear between nodes):
+    q = (lambda_l (T(x-h) - T(x)) / h_l + lambda_r (T(x) - T(x+h)) / h_r) / 2, each conductivity that of
+    the layer the half-interval lies in, at the half-interval's mean temperature. At a node this is
+    the mean of the two adjacent link fluxes (a central difference); across a layer interface it
+    uses each side's own conductivity.
+    """
+    xm, x0, xp = flux_probe_depths(wall, depth)
+    t_minus, t_at, t_plus = (np.asarray(v, dtype=float) for v in (t_minus, t_at, t_plus))
+    parts = []
+    if x0 > xm:
+        lam = _layer_conductivity(wall, 0.5 * (xm + x0), 0.5 * (t_minus + t_at))
+        parts.append(lam * (t_minus - t_at) / (x0 - xm))
+    if xp > x0:
+        lam = _layer_conductivity(wall, 0.5 * (x0 + xp), 0.5 * (t_at + t_plus))
+        parts.append(lam * (t_at - t_plus) / (xp - x0))
+    return sum(parts) / len(parts)
 
 
 def _boundary_named(frame: pd.DataFrame, study: Study) -> pd.DataFrame:

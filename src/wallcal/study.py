@@ -56,7 +56,7 @@ class SensorSpec:
     """A measured signal compared with the model.
 
     ``quantity``: temperature (``name`` is a probe of the wall) or heat_flux (at
-    ``face``). ``accuracy`` [degC or W/m2] or ``accuracy_relative`` [-].
+    ``face``, or at ``depth`` [m from the exterior face] inside the wall). ``accuracy`` [degC or W/m2] or ``accuracy_relative`` [-].
     ``weight`` [-] enters weighted objectives. ``offset`` is added to the column after
     the unit and sign conversion.
     """
@@ -65,6 +65,7 @@ class SensorSpec:
     column: str
     quantity: str = "temperature"
     face: str | None = None
+    depth: float | None = None
     accuracy: float | None = None
     accuracy_relative: float | None = None
     unit: str = "degC"
@@ -491,8 +492,8 @@ DATA_KEYS = ("file", "time_column", "time_format", "start", "utc_offset", "max_g
              "remove_spikes", "spike_sigma", "files")
 DATA_FILE_KEYS = ("file", "time_column", "columns", "prefix", "separator")
 BOUNDARY_KEYS = ("type", "column", "surface_coefficient", "unit", "positive", "offset")
-SENSOR_KEYS = ("name", "column", "quantity", "face", "accuracy", "accuracy_relative", "unit", "positive",
-               "weight", "offset")
+SENSOR_KEYS = ("name", "column", "quantity", "face", "depth", "depth_from", "accuracy", "accuracy_relative", "unit",
+               "positive", "weight", "offset")
 PERIOD_KEYS = ("warmup_start", "start", "end")
 SIMULATION_KEYS = ("engine", "time_step", "grid_constant", "node_rule", "stiff_limit")
 
@@ -660,11 +661,27 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         weight = sn.num("weight", 1.0, ge=0.0)
         offset = sn.num("offset", 0.0, ge=-1e6, le=1e6)
         positive = sn.str("positive", "towards_interior", choices=FLUX_DIRECTIONS)
+        depth = None
         if quantity == "heat_flux":
             unit = sn.str("unit", "W/m2", choices=("W/m2",))
-            if face is None and sn.ok and not sn.has("face"):
-                problems.add(sn._p("face"), "required for a heat_flux sensor: \"exterior\" or \"interior\"")
+            if sn.has("depth"):
+                depth = sn.num("depth", ge=0.0)
+                depth_from = sn.str("depth_from", "exterior", choices=FACES)
+                if sn.has("face"):
+                    problems.add(sn.path, "give face (a heat flux at a face) or depth (inside the wall), not both")
+                elif depth is not None and wall is not None:
+                    if not 0.0 < depth < wall.thickness:
+                        problems.add(sn._p("depth"), f"must be inside the wall (0 < depth < {wall.thickness:g} m); "
+                                     "for a face, give face = \"exterior\" or \"interior\"")
+                        depth = None
+                    elif depth_from == "interior":
+                        depth = wall.thickness - depth
+            elif face is None and sn.ok and not sn.has("face"):
+                problems.add(sn._p("face"), "required for a heat_flux sensor: \"exterior\" or \"interior\" "
+                             "(or a depth inside the wall)")
         else:
+            if sn.has("depth") or sn.has("depth_from"):
+                problems.add(sn._p("depth"), "only for heat_flux sensors; a temperature sensor's depth is its probe's")
             unit = sn.str("unit", "degC", choices=TEMPERATURE_UNITS)
             if sn.has("face"):
                 problems.add(sn._p("face"), "only for heat_flux sensors; a temperature sensor is a probe of the wall")
@@ -680,7 +697,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
                 problems.add(sn._p("name"), f"sensor {sname!r} is defined twice")
             sensor_names.add(sname)
         if sname and col and quantity:
-            sensors.append(SensorSpec(name=sname, column=col, quantity=quantity, face=face, accuracy=acc,
+            sensors.append(SensorSpec(name=sname, column=col, quantity=quantity, face=face, depth=depth, accuracy=acc,
                                       accuracy_relative=accr, unit=unit or "degC",
                                       positive=positive or "towards_interior", weight=weight,
                                       offset=offset or 0.0))

@@ -53,9 +53,23 @@ class Evaluator:
         self.mask = []
         self.weights = []
         self.scale = []
+        self.depth_fluxes = []  # (target index, rows of the three hidden probes, half-interval geometry)
         for name in space.targets:
             s = study.sensor(name)
-            if s.quantity == "heat_flux":
+            if s.quantity == "heat_flux" and s.depth is not None:
+                from ..simulation import flux_probe_depths, flux_probe_names
+
+                rows3 = [probe_rows[n] for n in flux_probe_names(name)]
+                xs = flux_probe_depths(inp.wall, s.depth)
+                halves = []
+                for a, b in ((0, 1), (1, 2)):
+                    if xs[b] > xs[a]:
+                        li = int(np.clip(np.searchsorted(inp.wall.interfaces, 0.5 * (xs[a] + xs[b]), side="right")
+                                         - 1, 0, len(inp.wall.layers) - 1))
+                        halves.append((rows3[a], rows3[b], xs[b] - xs[a], li))
+                self.depth_fluxes.append((len(self.rows), halves))
+                self.rows.append(rows3[1])  # placeholder row, replaced by the flux in simulate()
+            elif s.quantity == "heat_flux":
                 self.rows.append(npr + (0 if s.face == "exterior" else 1))
             else:
                 self.rows.append(probe_rows[name])
@@ -90,7 +104,20 @@ class Evaluator:
         res = self.engine.run_batch(props, pd_)
         self.evaluations += X.shape[0]
         self.seconds += time.perf_counter() - t
-        return res.out[:, self.rows, :]
+        sim = res.out[:, self.rows, :]
+        for k, halves in self.depth_fluxes:
+            q = 0.0
+            for ra, rb, h, li in halves:
+                ta, tb = res.out[:, ra, :], res.out[:, rb, :]
+                lam = props.conductivity[:, li, None]
+                if self.wall.layers[li].is_massless:
+                    lam = self.wall.layers[li].thickness / props.thermal_resistance[:, li, None]
+                else:
+                    f = props.temperature_coefficient[:, li, None]
+                    lam = lam * np.exp(f * (0.5 * (ta + tb) - props.reference_temperature[:, li, None]))
+                q = q + lam * (ta - tb) / h
+            sim[:, k, :] = q / len(halves)
+        return sim
 
     def errors(self, X: np.ndarray) -> np.ndarray:
         """Simulated minus measured at the valid samples (0 elsewhere), shape (c, targets, times)."""
