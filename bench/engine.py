@@ -13,7 +13,6 @@ import os
 import subprocess
 import sys
 import time
-import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +88,11 @@ def main(argv=None):
     nl_one = PropertyArrays.from_walls([nl_wall])
     rows.append(row("lambda(T) wall (general path, nonlinear)", timeit(lambda: nl_prep.run_batch(nl_one),
                                                                        args.repeat)))
+    nl_batch = PropertyArrays.from_walls([nl_wall] * 16)
+    rows.append(row("lambda(T) walls, batch of 16 (2 cores), per batch", timeit(lambda: nl_prep.run_batch(nl_batch),
+                                                                            max(3, args.repeat // 5)), per_call=16))
+    rows.append(row("FDEngine.prepare (grid, laws, output plan; once per study)",
+                    timeit(lambda: eng.prepare(prep_data.inp)._output_plan(), args.repeat)))
     rows.append(row("wallcal.simulate(study) incl. data preparation",
                     timeit(lambda: wallcal.simulate(study), max(3, args.repeat // 5))))
     rows.append(row("simulate(prepared=...) (data prepared once)",
@@ -96,24 +100,28 @@ def main(argv=None):
     rows.append(("fresh process: import + first simulation", float(np.median(fresh)), float(fresh.min()),
                  float(fresh.max()), 1 / float(np.median(fresh))))
 
-    # memory: peak allocation of one run vs the length of the record (boundary inputs excluded)
+    # memory: growth of the peak resident set during one engine run on the record repeated k times
+    # (kernels warmed up on the plain record; inputs and the prepared step series allocated before;
+    # numba allocates outside tracemalloc's view)
+    mem_code = ("import resource, sys, numpy as np, wallcal; from dataclasses import replace; "
+                "from wallcal.engines.fd import FDEngine; from wallcal.grid import PropertyArrays; "
+                "from wallcal.simulation import prepare; "
+                f"s = wallcal.load_study({str(EXAMPLE)!r}); inp = prepare(s).inp; k = int(sys.argv[1]); "
+                "ue = np.append(np.tile(inp.exterior.values[:-1], k), inp.exterior.values[-1]); "
+                "ui = np.append(np.tile(inp.interior.values[:-1], k), inp.interior.values[-1]); "
+                "big = replace(inp, exterior=replace(inp.exterior, values=ue), "
+                "interior=replace(inp.interior, values=ui)); "
+                "w = FDEngine('cn').prepare(inp); one = PropertyArrays.from_walls([s.wall]); "
+                "w.run_batch(one); w.run_batch(one, path='general'); "
+                "p = FDEngine('cn').prepare(big); p._modal_steps(); p._output_plan(); "
+                "r0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; p.run_batch(one); "
+                "r1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; p.run_batch(one, path='general'); "
+                "r2 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
+                "print(len(ue) - 1, len(big.output_positions), r1 - r0, r2 - r1)")
     mem = []
-    for k in (1, 4):
-        inp = prep_data.inp
-        ue = np.tile(inp.exterior.values[:-1], k)
-        ue = np.append(ue, ue[-1])
-        ui = np.tile(inp.interior.values[:-1], k)
-        ui = np.append(ui, ui[-1])
-        from dataclasses import replace
-
-        big = replace(inp, exterior=replace(inp.exterior, values=ue), interior=replace(inp.interior, values=ui))
-        p = eng.prepare(big)
-        p.run_batch(one)
-        tracemalloc.start()
-        p.run_batch(one)
-        peak = tracemalloc.get_traced_memory()[1]
-        tracemalloc.stop()
-        mem.append((len(ue) - 1, peak))
+    for k in (1, 8):
+        out = subprocess.run([sys.executable, "-c", mem_code, str(k)], capture_output=True, text=True, check=True)
+        mem.append(tuple(int(v) for v in out.stdout.split()))
 
     eplus = None
     if not args.no_energyplus:
@@ -141,8 +149,9 @@ def main(argv=None):
         print(line)
     if eplus:
         print(f"{'EnergyPlus 25.2 engine (fictitious zone, one run)':58s} {eplus * 1e3:8.0f}ms")
-    for n, peak in mem:
-        print(f"peak memory allocated by one engine run, {n} steps: {peak / 1024:.0f} KiB")
+    for n, n_out, d_modal, d_general in mem:
+        print(f"peak RSS growth of one run after warm-up, {n} steps ({n_out} output times): "
+              f"modal {d_modal} KiB, general {d_general} KiB (inputs {2 * 8 * (n + 1) // 1024} KiB)")
 
 
 if __name__ == "__main__":

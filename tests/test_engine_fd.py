@@ -297,3 +297,62 @@ def test_auto_path_choice():
     nl = wall.replace_layer("wool", conductivity_temperature_coefficient=0.004)
     inp2 = inp.__class__(**{**inp.__dict__, "wall": nl})
     assert run(inp2).info["path"] == "general"
+
+
+@pytest.mark.parametrize("path", ["modal", "general"])
+def test_batch_equals_single_runs_each_path(path):
+    wall = three_layer_wall()
+    t = np.arange(1441) * 60.0
+    inp = make_input(wall, 5 + 10 * np.sin(2 * np.pi * t / 86400), np.full(1441, 20.0), 60.0, out_every=5)
+    walls = [wall.replace_layer("wool", conductivity=c) for c in (0.035, 0.04, 0.045)]
+    walls += [wall.replace_probe("P1", depth=0.13), wall.replace_layer("brick", density=1500.0)]
+    prep = FDEngine("cn").prepare(inp)
+    batch = prep.run_walls(walls, path=path)
+    assert batch.path == path
+    for i, w in enumerate(walls):
+        single = prep.run_walls([w], path=path)
+        np.testing.assert_allclose(batch.out[i], single.out[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(batch.final_state[i], single.final_state[0], rtol=0, atol=1e-12)
+
+
+def test_lambda_T_batch_equals_single_runs():
+    wall = three_layer_wall().replace_layer("wool", conductivity_temperature_coefficient=0.01)
+    t = np.arange(1441) * 60.0
+    inp = make_input(wall, 5 + 15 * np.sin(2 * np.pi * t / 86400), np.full(1441, 20.0), 60.0, out_every=5)
+    walls = [wall.replace_layer("wool", conductivity=c) for c in (0.035, 0.04)]
+    walls.append(wall.replace_layer("wool", conductivity_temperature_coefficient=0.02))
+    prep = FDEngine("cn").prepare(inp)
+    batch = prep.run_walls(walls)
+    assert batch.path == "general"
+    for i, w in enumerate(walls):
+        np.testing.assert_allclose(batch.out[i], prep.run_walls([w]).out[0], rtol=0, atol=1e-12)
+    # a larger temperature coefficient changes the result
+    assert np.abs(batch.out[2] - batch.out[1]).max() > 1e-3
+
+
+def test_modal_equals_general_from_a_given_initial_state():
+    wall = three_layer_wall()
+    t = np.arange(721) * 60.0
+    inp = make_input(wall, 5 + 10 * np.sin(2 * np.pi * t / 86400), np.full(721, 20.0), 60.0, out_every=5)
+    prep = FDEngine("cn").prepare(inp)
+    props = PropertyArrays.from_walls([wall, wall.replace_layer("wool", conductivity=0.05)])
+    n = prep.grid.n_nodes
+    t0 = np.vstack([np.linspace(0.0, 30.0, n), 10 + 5 * np.sin(np.arange(n))])
+    fast = prep.run_batch(props, initial_state=t0, path="modal")
+    slow = prep.run_batch(props, initial_state=t0, path="general")
+    np.testing.assert_allclose(fast.out, slow.out, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.final_state, slow.final_state, rtol=0, atol=1e-9)
+
+
+def test_lambda_T_refactorisation_is_invisible():
+    """The frozen factorisation with explicit drift correction against refactorising every step:
+    the two differ by O(dt^2) terms far below the discretisation error."""
+    wall = three_layer_wall().replace_layer("wool", conductivity_temperature_coefficient=0.02)
+    t = np.arange(2881) * 60.0
+    inp = make_input(wall, 5 + 20 * np.sin(2 * np.pi * t / 86400), np.full(2881, 20.0), 60.0, out_every=5)
+    ref = FDEngine("cn").prepare(inp).run_walls([wall])
+    assert ref.path == "general"
+    inp_every = inp.__class__(**{**inp.__dict__, "options": {**inp.options, "refactor_drift": 0.0}})
+    every = FDEngine("cn").prepare(inp_every).run_walls([wall])
+    diff = np.abs(every.out[0, :4] - ref.out[0, :4]).max()
+    assert diff < 1e-4, diff

@@ -56,7 +56,8 @@ class SensorSpec:
     """A measured signal compared with the model.
 
     ``quantity``: temperature (``name`` is a probe of the wall) or heat_flux (at
-    ``face``, or at ``depth`` [m from the exterior face] inside the wall). ``accuracy`` [degC or W/m2] or ``accuracy_relative`` [-].
+    ``face``, or at ``depth`` [m from the exterior face] inside the wall). ``accuracy`` [degC or
+    W/m2] or ``accuracy_relative`` [-].
     ``weight`` [-] enters weighted objectives. ``offset`` is added to the column after
     the unit and sign conversion.
     """

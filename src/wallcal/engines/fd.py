@@ -16,9 +16,14 @@ Scheme details
   Those links are fully implicit (L-stable), which damps their ringing while
   the rest of the wall keeps second-order accuracy. On ordinary walls with
   C >= 1 no link is switched; ``info["implicit_links"]`` says how many were.
-- lambda(T): each link's conductance is evaluated at the mean temperature of
-  its two nodes, extrapolated to mid-step (``1.5 T^n - 0.5 T^{n-1}``), so the
-  linearised scheme keeps second order without inner iterations.
+- lambda(T): each link's conductance is the Kirchhoff mean of lambda over its two
+  node temperatures, evaluated at the mid-step temperature extrapolated from the
+  last two steps (``1.5 T^n - 0.5 T^{n-1}``); the matrix stays factorised at
+  conductances ``g0`` and the difference ``g* - g0`` is applied explicitly to the
+  predicted ``T^{n+1}`` (``2 T^n - T^{n-1}``), link by link (exactly
+  conservative); the matrix is refactorised when ``g*`` drifts more than 2 % from
+  ``g0``. Second order for CN, exact steady state, no inner iterations (see
+  :func:`wallcal.engines.kernels._run_one`).
 - Initial state: the steady profile of the first boundary values (Picard
   iterations for lambda(T)), then the warm-up period.
 - Outputs: probe temperatures exact on a node and linear between nodes; face
@@ -26,6 +31,15 @@ Scheme details
   ``q_e = g_01 (T_0 - T_1) + c_0 dT_0/dt`` (central difference of the imposed
   series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces.
   Outputs between grid times are interpolated linearly in time.
+- Paths: walls with constant conductances, heat capacity at every unknown node
+  and no stiff link take the exact modal fast path (:mod:`wallcal.engines.modal`);
+  the others the general tridiagonal path (:mod:`wallcal.engines.kernels`).
+  ``run_batch(path="auto")`` chooses, the result's ``path`` says which ran.
+- Per call, Python only checks the inputs and calls numba functions (grid
+  assembly, thetas, probe weights, the batch kernel); everything that depends
+  only on the boundary data and output times (theta-weighted inputs, the modal
+  output plan) is computed once per :class:`PreparedFD`. No BLAS or LAPACK is
+  called inside the kernels, so their threads cannot oversubscribe numba's.
 """
 
 from __future__ import annotations
@@ -86,19 +100,6 @@ class BatchResult:
         return self.energy[:, 0] - (self.energy[:, 1] - self.energy[:, 2])
 
 
-_BLAS_LIMITER = None
-
-
-def _blas_single_thread():
-    """Context manager limiting BLAS/LAPACK to one thread (threadpoolctl), created once."""
-    global _BLAS_LIMITER
-    if _BLAS_LIMITER is None:
-        from threadpoolctl import ThreadpoolController
-
-        _BLAS_LIMITER = ThreadpoolController()
-    return _BLAS_LIMITER.limit(limits=1, user_api="blas")
-
-
 class PreparedFD:
     """A wall, its grid and its boundary data, ready to run candidate walls."""
 
@@ -137,6 +138,8 @@ class PreparedFD:
         # conductivity laws per link (constant over candidates except through g_ref); layers whose
         # temperature coefficient is a calibration parameter use the exponential law even at f = 0
         self.exponential_layers = frozenset(inp.options.get("exponential_layers", ()))
+        # lambda(T): refactorise the tridiagonal matrix when a conductance drifts this much (0: every step)
+        self.refactor_drift = float(inp.options.get("refactor_drift", 0.02))
         self._laws()
 
     # ------------------------------------------------------------------ setup
@@ -188,25 +191,8 @@ class PreparedFD:
 
     def _thetas(self, cap: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """theta per link and per boundary term, and the number of links made implicit."""
-        nc, n_nodes = cap.shape
-        known = np.zeros(n_nodes, dtype=bool)
-        if self.bc_type[0] == kernels.DIRICHLET:
-            known[0] = True
-        if self.bc_type[1] == kernels.DIRICHLET:
-            known[-1] = True
-        with np.errstate(divide="ignore"):
-            inv_c = np.where(cap > 0, 1.0 / np.where(cap > 0, cap, 1.0), np.inf)
-        inv_c[:, known] = 0.0
-        pair = g * self.dt * (inv_c[:, :-1] + inv_c[:, 1:])
-        theta = np.full(g.shape, self.theta)
-        if self.theta < 1.0:
-            force = ~np.isfinite(pair) | (pair > self.stiff_limit)
-            theta[force] = 1.0
-        bc_theta = np.full((nc, 2), self.theta)
-        bc_theta[:, 0] = np.where(np.isfinite(inv_c[:, 0]), self.theta, 1.0)
-        bc_theta[:, 1] = np.where(np.isfinite(inv_c[:, -1]), self.theta, 1.0)
-        n_forced = (theta != self.theta).sum(axis=1)
-        return theta, bc_theta, n_forced
+        return kernels.link_thetas(cap, g, self.theta, self.dt, self.stiff_limit,
+                                   self.bc_type[0] == kernels.DIRICHLET, self.bc_type[1] == kernels.DIRICHLET)
 
     # ------------------------------------------------------------------ running
     def probe_depth_matrix(self, walls: list[Wall] | None = None, n: int = 1) -> np.ndarray:
@@ -258,10 +244,7 @@ class PreparedFD:
             raise EngineError("the modal fast path needs constant conductivities, heat capacity at every "
                               "unknown node and no stiff links; use path='general'")
         if path in ("auto", "modal") and possible:
-            # one BLAS thread inside the kernel's own parallel loop (LAPACK's eigh would otherwise
-            # start threads of its own in every numba thread and oversubscribe the cores)
-            with _blas_single_thread():
-                return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced)
+            return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced)
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         kind = np.broadcast_to(self.kind, g.shape).copy()
@@ -269,10 +252,12 @@ class PreparedFD:
         ts = np.broadcast_to(self.tab_start, g.shape).copy()
         tl = np.broadcast_to(self.tab_len, g.shape).copy()
         bc_h = np.broadcast_to(self.bc_h, (nc, 2)).copy()
-        out, energy, tend = kernels.run_batch(
+        # one candidate: run on the calling thread (waking numba's worker threads costs more than it saves)
+        run = kernels.run_serial if nc == 1 else kernels.run_batch
+        out, energy, tend = run(
             cap, g, theta, kind, coef, tref, ts, tl, self.tab_T, self.tab_v, self.nonlinear,
             self.bc_type, bc_h, bc_theta, self.ue, self.ui, self.dt, self.out_step, self.out_w,
-            pa, pb, pw, tinit,
+            pa, pb, pw, tinit, self.refactor_drift,
         )
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
@@ -286,89 +271,21 @@ class PreparedFD:
             self._s = s
         return self._s
 
+    def _output_plan(self):
+        if getattr(self, "_plan", None) is None:
+            self._plan = modal.output_plan(self.out_step, self.out_w, len(self.ue) - 1, self.theta, self.ue,
+                                           self.ui, self.dt)
+        return self._plan
+
     def _run_modal(self, cap, g, pa, pb, pw, initial_state, n_forced) -> BatchResult:
         nc, n_nodes = cap.shape
-        j0, m = self.unknown_range
-        bt = self.bc_type
-        h_e, h_i = self.bc_h
-        # K over the unknowns (boundary coefficients included) and its input coupling p
-        kd = np.zeros((nc, m))
-        links = np.arange(self.grid.n_links)
-        ia, ib = links - j0, links + 1 - j0
-        for lnk in links:
-            if 0 <= ia[lnk] < m:
-                kd[:, ia[lnk]] += g[:, lnk]
-            if 0 <= ib[lnk] < m:
-                kd[:, ib[lnk]] += g[:, lnk]
-        ko = np.zeros((nc, m))
-        inner = (ia >= 0) & (ib < m)
-        ko[:, ia[inner]] = -g[:, inner]
-        p = np.zeros((nc, m, 2))
-        if bt[0] == kernels.DIRICHLET:
-            p[:, 0, 0] = g[:, 0]
-        elif bt[0] == kernels.ROBIN:
-            kd[:, 0] += h_e
-            p[:, 0, 0] = h_e
-        else:
-            p[:, 0, 0] = 1.0
-        if bt[1] == kernels.DIRICHLET:
-            p[:, m - 1, 1] = g[:, -1]
-        elif bt[1] == kernels.ROBIN:
-            kd[:, m - 1] += h_i
-            p[:, m - 1, 1] = h_i
-        else:
-            p[:, m - 1, 1] = -1.0
-        # outputs: probes, exterior flux, interior flux
-        npr = pa.shape[1]
-        nq = npr + 2
-        H = np.zeros((nc, nq, m))
-        Dp = np.zeros((nc, nq, 2))
-        Dd = np.zeros((nc, nq, 2))
-        Hf = np.zeros((nc, nq, n_nodes))
-        cidx = np.repeat(np.arange(nc), npr)
-        qidx = np.tile(np.arange(npr), nc)
-        np.add.at(Hf, (cidx, qidx, pa.ravel()), (1.0 - pw).ravel())
-        np.add.at(Hf, (cidx, qidx, pb.ravel()), pw.ravel())
-        if j0 == 1:
-            Dp[:, :, 0] = Hf[:, :, 0]
-        if j0 + m < n_nodes:
-            Dp[:, :, 1] = Hf[:, :, -1]
-        H[:] = Hf[:, :, j0:j0 + m]
-        qe, qi = npr, npr + 1
-        if bt[0] == kernels.DIRICHLET:
-            Dp[:, qe, 0] = g[:, 0]
-            H[:, qe, 0] = -g[:, 0]
-            Dd[:, qe, 0] = cap[:, 0]
-        elif bt[0] == kernels.ROBIN:
-            Dp[:, qe, 0] = h_e
-            H[:, qe, 0] = -h_e
-        else:
-            Dp[:, qe, 0] = 1.0
-        if bt[1] == kernels.DIRICHLET:
-            H[:, qi, m - 1] = g[:, -1]
-            Dp[:, qi, 1] = -g[:, -1]
-            Dd[:, qi, 1] = -cap[:, -1]
-        elif bt[1] == kernels.ROBIN:
-            H[:, qi, m - 1] = h_i
-            Dp[:, qi, 1] = -h_i
-        else:
-            Dp[:, qi, 1] = 1.0
-        if initial_state is None:
-            t0 = np.zeros((nc, 0))
-        else:
-            t0 = np.ascontiguousarray(np.asarray(initial_state, dtype=float)[:, j0:j0 + m])
-        cap_u = np.ascontiguousarray(cap[:, j0:j0 + m])
-        smooth = np.zeros(nq, dtype=np.bool_)
-        smooth[qe] = bt[0] != kernels.FLUX
-        smooth[qi] = bt[1] != kernels.FLUX
-        out, tend_u = modal.modal_batch(kd, ko, cap_u, p, self.theta, self.dt, self._modal_steps(), self.ue,
-                                        self.ui, self.out_step, self.out_w, H, Dp, Dd, smooth, t0)
-        tend = np.zeros((nc, n_nodes))
-        tend[:, j0:j0 + m] = tend_u
-        if bt[0] == kernels.DIRICHLET:
-            tend[:, 0] = self.ue[-1]
-        if bt[1] == kernels.DIRICHLET:
-            tend[:, -1] = self.ui[-1]
+        t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
+        base, wp, wf, feat = self._output_plan()
+        run = modal.modal_serial if nc == 1 else modal.modal_batch
+        out, tend = run(cap, g, pa, pb, pw, self.bc_type, self.bc_h, self.theta, self.dt, self._modal_steps(),
+                        self.ue, self.ui, base, wp, wf, feat, t0)
+        if not np.isfinite(tend).all():
+            raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         energy = np.full((nc, 3), np.nan)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
 

@@ -12,6 +12,16 @@ boundary inputs. Every link flux is evaluated identically for the two nodes it
 joins, so the scheme conserves energy exactly; :func:`run_batch` reports the
 balance.
 
+The loop is written as link fluxes: ``F_l = E_l + theta_l g0_l (T^{n+1}_a - T^{n+1}_b)`` with the
+explicit part ``E_l`` computed first, the right-hand side ``Cap/dt T^n + sum of E`` and one lean
+Thomas solve with a matrix factorised at conductances ``g0``. For constant conductances the
+matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances of the step
+``g*`` (Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the
+difference is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised
+only when ``g*`` drifts from ``g0``. The exponential law's node factors ``exp(f (T - T_ref))`` are
+updated multiplicatively with a short polynomial of ``f dT`` (exact ``exp`` when a step changes
+a temperature a lot, and every 1024 steps). State buffers are rotated, not copied.
+
 Boundary codes: 0 surface temperature (Dirichlet), 1 air temperature with a
 surface coefficient (Robin), 2 heat flux density (positive towards the interior).
 Conductivity codes per link: 0 constant, 1 exponential ``exp(f (T - T_ref))``,
@@ -200,9 +210,9 @@ def _steady(cap, g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, n
 
 
 @njit(cache=True)
-def _probes(Tfull, pa, pb, pw, dst):
+def _probes(Tfull, pa, pb, pw, P, row):
     for k in range(pa.shape[0]):
-        dst[k] = (1.0 - pw[k]) * Tfull[pa[k]] + pw[k] * Tfull[pb[k]]
+        P[row, k] = (1.0 - pw[k]) * Tfull[pa[k]] + pw[k] * Tfull[pb[k]]
 
 
 @njit(cache=True)
@@ -223,49 +233,253 @@ def _face_flux(F, j, n_steps, u, is_flux_bc):
 
 
 @njit(cache=True)
-def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-             bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, out, energy, Tinit):
+def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2):
+    """Twisted ("burn at both ends") LU of A0 = Cap/dt + K_theta(g0) over the unknowns.
+
+    Rows above the twist k = m // 2 are eliminated downwards (pivots p), rows below it upwards
+    (pivots q), so that a solve runs two independent dependency chains of length m/2 instead of
+    one of length m. Stored per row i: inv = 1/pivot, and
+    i < k: f1 = b_{i-1}/p_i (forward coupling), f2 = b_i/p_i (back substitution);
+    i > k: f1 = b_i/q_i, f2 = b_{i-1}/q_i; i = k: 1/gamma and the two couplings b_{k-1}, b_k.
+    (a: diagonal, b_i: off-diagonal between i and i + 1.)
+    """
+    k = m // 2
+    a = np.empty(m)
+    b = np.zeros(m)
+    for i in range(m):
+        j = j0 + i
+        diag = cap[j] / dt
+        if j >= 1:
+            diag += theta[j - 1] * g0[j - 1]
+        if j < g0.shape[0]:
+            diag += theta[j] * g0[j]
+        a[i] = diag
+        if i < m - 1:
+            b[i] = -theta[j] * g0[j]
+    if bc_type[0] == 1:
+        a[0] += bc_theta[0] * bc_h[0]
+    if bc_type[1] == 1:
+        a[m - 1] += bc_theta[1] * bc_h[1]
+    for i in range(k):  # downwards
+        piv = a[i]
+        if i > 0:
+            piv -= b[i - 1] * f2[i - 1]
+        inv[i] = 1.0 / piv
+        f1[i] = b[i - 1] * inv[i] if i > 0 else 0.0
+        f2[i] = b[i] * inv[i]
+    for i in range(m - 1, k, -1):  # upwards
+        piv = a[i]
+        if i < m - 1:
+            piv -= b[i] * f2[i + 1]
+        inv[i] = 1.0 / piv
+        f1[i] = b[i] * inv[i] if i < m - 1 else 0.0
+        f2[i] = b[i - 1] * inv[i]
+    gam = a[k]
+    if k > 0:
+        gam -= b[k - 1] * f2[k - 1]
+    if k < m - 1:
+        gam -= b[k] * f2[k + 1]
+    inv[k] = 1.0 / gam
+    f1[k] = b[k - 1] if k > 0 else 0.0
+    f2[k] = b[k] if k < m - 1 else 0.0
+
+
+@njit(cache=True, fastmath=True)
+def _solve_lean(inv, f1, f2, rhs, x, m, off):
+    """Solve A0 x[off:off + m] = rhs with the twisted factors of :func:`_factor_lean`: the two
+    halves' chains are interleaved, one multiply-add per row and sweep."""
+    k = m // 2
+    for i in range(m):
+        if i != k:
+            rhs[i] *= inv[i]
+    # elimination towards the twist: y_i = rhs_i/p_i - f1_i y_{i-1} (top), y_i = rhs_i/q_i - f1_i y_{i+1}
+    # (bottom); the running values stay in registers (no store-to-load latency on the chain)
+    yt = rhs[0]
+    yb = rhs[m - 1]
+    x[off + 0] = yt
+    x[off + m - 1] = yb
+    for t in range(1, k):
+        yt = rhs[t] - f1[t] * yt
+        x[off + t] = yt
+        ib = m - 1 - t
+        if ib > k:
+            yb = rhs[ib] - f1[ib] * yb
+            x[off + ib] = yb
+    xk = rhs[k]
+    if k > 0:
+        xk -= f1[k] * x[off + k - 1]
+    if k < m - 1:
+        xk -= f2[k] * x[off + k + 1]
+    xk *= inv[k]
+    x[off + k] = xk
+    # substitution away from the twist
+    xt = xk
+    xb = xk
+    for t in range(1, max(k, m - 1 - k) + 1):
+        it = k - t
+        if it >= 0:
+            xt = x[off + it] - f2[it] * xt
+            x[off + it] = xt
+        ib = k + t
+        if ib < m:
+            xb = x[off + ib] - f2[ib] * xb
+            x[off + ib] = xb
+
+
+@njit(cache=True, fastmath=True)
+def _exp_step(x):
+    """exp(x) for |x| <= 0.01 (degree-5 Taylor polynomial, relative error < 2e-15)."""
+    return 1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (1.0 / 120.0)))))
+
+
+@njit(cache=True)
+def _exact_factors(coef, tref, Tmid, Ea, Eb):
+    for lnk in range(Ea.shape[0]):
+        Ea[lnk] = np.exp(coef[lnk] * (Tmid[lnk] - tref[lnk]))
+        Eb[lnk] = np.exp(coef[lnk] * (Tmid[lnk + 1] - tref[lnk]))
+
+
+@njit(cache=True, fastmath=True)
+def _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb):
+    """Kirchhoff-mean conductances from the end-node factors E = exp(f (T - T_ref)):
+    g = g_ref (E_a - E_b) / (f (T_a - T_b)) (series form when the two are close); a constant link
+    has f = 0, so E = 1 and g = g_ref exactly. Table links are evaluated by Simpson's rule."""
+    n_links = gs.shape[0]
+    for lnk in range(n_links):  # branch-free (vectorises)
+        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+        far = abs(d) > 1e-4
+        ratio = (Ea[lnk] - Eb[lnk]) / (d if far else 1.0)
+        series = 0.5 * (Ea[lnk] + Eb[lnk]) * (1.0 - d * d / 12.0)
+        gs[lnk] = g_ref[lnk] * (ratio if far else series)
+    if not has_table:
+        return
+    for lnk in range(n_links):
+        if kind[lnk] == 2:
+            ta = Tmid[lnk]
+            tb = Tmid[lnk + 1]
+            fa = _link_factor(2, 0.0, 0.0, tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta)
+            fb = _link_factor(2, 0.0, 0.0, tab_start[lnk], tab_len[lnk], tab_T, tab_v, tb)
+            fm = _link_factor(2, 0.0, 0.0, tab_start[lnk], tab_len[lnk], tab_T, tab_v, 0.5 * (ta + tb))
+            gs[lnk] = g_ref[lnk] * (fa + 4.0 * fm + fb) / 6.0
+
+
+@njit(cache=True, fastmath=True)
+def _step_conductances(gs, g_ref, g0, tol, coef, Tmid, Tmid_old, Ea, Eb):
+    """One pass over the links: node factors updated by exp(f dT) (polynomial), Kirchhoff-mean
+    conductances g* (as :func:`_nonlinear_conductances`), and two counts: links whose |f dT|
+    exceeds the polynomial's range, and links whose g* drifted more than tol from g0.
+    Written without branches or max-reductions so that it vectorises."""
+    n_big = 0.0
+    n_drift = 0.0
+    for lnk in range(gs.shape[0]):
+        f = coef[lnk]
+        xa = f * (Tmid[lnk] - Tmid_old[lnk])
+        xb = f * (Tmid[lnk + 1] - Tmid_old[lnk + 1])
+        n_big += (1.0 if abs(xa) > 0.01 else 0.0) + (1.0 if abs(xb) > 0.01 else 0.0)
+        ea = Ea[lnk] * _exp_step(xa)
+        eb = Eb[lnk] * _exp_step(xb)
+        Ea[lnk] = ea
+        Eb[lnk] = eb
+        d = f * (Tmid[lnk] - Tmid[lnk + 1])
+        far = abs(d) > 1e-4
+        ratio = (ea - eb) / (d if far else 1.0)
+        series = 0.5 * (ea + eb) * (1.0 - d * d / 12.0)
+        gk = g_ref[lnk] * (ratio if far else series)
+        gs[lnk] = gk
+        n_drift += 1.0 if abs(gk - g0[lnk]) > tol[lnk] else 0.0
+    return n_big, n_drift
+
+
+@njit(cache=True)
+def _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol):
+    """How far a link conductance may drift from the factorised one before refactoring: the
+    fraction ``drift`` of it (default 2 %), and at most 0.05 / (theta dt (1/c_a + 1/c_b)) so that
+    the explicit correction stays far inside its stability limit."""
+    n_links = g0.shape[0]
     n_nodes = cap.shape[0]
+    for lnk in range(n_links):
+        ia = 0.0 if (lnk == 0 and bc_type[0] == 0) or cap[lnk] <= 0.0 else 1.0 / cap[lnk]
+        ib = 0.0 if (lnk + 1 == n_nodes - 1 and bc_type[1] == 0) or cap[lnk + 1] <= 0.0 else 1.0 / cap[lnk + 1]
+        if (cap[lnk] <= 0.0 and not (lnk == 0 and bc_type[0] == 0)) or \
+                (cap[lnk + 1] <= 0.0 and not (lnk + 1 == n_nodes - 1 and bc_type[1] == 0)):
+            tol[lnk] = 0.0
+            continue
+        stiff = theta[lnk] * dt * (ia + ib)
+        tol[lnk] = drift * g0[lnk]
+        if stiff > 0.0:
+            tol[lnk] = min(tol[lnk], 0.05 / stiff)
+
+
+@njit(cache=True)
+def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
+             bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, out, energy, Tinit, drift):
+    """One candidate of :func:`run_batch`.
+
+    Each link's flux over a step is ``F_l = E_l + theta_l g0_l (T^{n+1}_a - T^{n+1}_b)``, applied with
+    opposite signs to its two nodes (so energy is conserved exactly), where ``g0`` are the
+    conductances of the factorised matrix and ``E_l`` the explicit part:
+
+    - constant conductances: ``g0 = g`` and ``E_l = (1 - theta_l) g_l (T^n_a - T^n_b)``;
+    - lambda(T): ``g*`` is the Kirchhoff mean at the mid-step temperature extrapolated from
+      ``T^n, T^{n-1}``, ``T~ = 2 T^n - T^{n-1}`` predicts ``T^{n+1}``, and
+      ``E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l``: the same flux as the
+      scheme with ``g*`` implicit up to ``theta (g0 - g*) (dT^{n+1} - dT~) = O(dt^2)``, so second
+      order is kept, the steady state is exact, and the matrix is refactorised only when ``g*``
+      drifts from ``g0`` (see :func:`_drift_tolerance`).
+    """
+    n_nodes = cap.shape[0]
+    n_links = g_ref.shape[0]
     n_steps = ue.shape[0] - 1
     j0 = 1 if bc_type[0] == 0 else 0
     j1 = n_nodes - 2 if bc_type[1] == 0 else n_nodes - 1
     m = j1 - j0 + 1
     mm = max(m, 1)
-    g = g_ref.copy()
-    Ad = np.zeros(mm)
-    Aoff = np.zeros(mm)
-    Bd = np.zeros(mm)
-    Boff = np.zeros(mm)
-    cp = np.zeros(mm)
+    g0 = g_ref.copy()  # conductances of the factorised matrix
+    gs = g_ref.copy()  # conductances of the current step (lambda(T))
+    tol = np.zeros(n_links)
     inv = np.zeros(mm)
+    f1 = np.zeros(mm)
+    f2 = np.zeros(mm)
     rhs = np.zeros(mm)
-    x = np.zeros(mm)
-    p = np.zeros(4)
-    T = np.zeros(n_nodes)
-    Tprev = np.zeros(n_nodes)
-    Tlin = np.zeros(n_nodes)
+    Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
+    Tn = np.zeros(n_nodes)  # T^n
+    Told = np.zeros(n_nodes)  # T^{n-1}
+    Tnew = np.zeros(n_nodes)  # T^{n+1}
+    Tmid = np.zeros(n_nodes)
+    Tmid_old = np.zeros(n_nodes)
+    Ea = np.ones(n_links)
+    Eb = np.ones(n_links)
+    has_table = False
+    for lnk in range(n_links):
+        if kind[lnk] == 2:
+            has_table = True
+    cdt = np.empty(n_nodes)
+    for j in range(n_nodes):
+        cdt[j] = cap[j] / dt
 
     if Tinit.shape[0] == n_nodes:
         for j in range(n_nodes):
-            T[j] = Tinit[j]
+            Tn[j] = Tinit[j]
         if bc_type[0] == 0:
-            T[0] = ue[0]
+            Tn[0] = ue[0]
         if bc_type[1] == 0:
-            T[n_nodes - 1] = ui[0]
+            Tn[n_nodes - 1] = ui[0]
     else:
-        _steady(cap, g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-                bc_type, bc_h, ue[0], ui[0], j0, m, T)
-    for j in range(n_nodes):
-        Tprev[j] = T[j]
+        _steady(cap, g0, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
+                bc_type, bc_h, ue[0], ui[0], j0, m, Tn)
     e_start = 0.0
     for j in range(n_nodes):
-        e_start += cap[j] * T[j]
-
+        Told[j] = Tn[j]
+        Tmid[j] = Tn[j]
+        e_start += cap[j] * Tn[j]
     if nonlinear:
-        _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, T)
+        _exact_factors(coef, tref, Tmid, Ea, Eb)
+        _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb)
+        for lnk in range(n_links):
+            g0[lnk] = gs[lnk]
+        _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol)
     if m > 0:
-        _assemble(cap, g, theta, bc_type, bc_h, bc_theta, dt, j0, m, Ad, Aoff, Bd, Boff, p)
-        _factor(Ad, Aoff, m, cp, inv)
+        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2)
 
     e_in = 0.0
     e_out = 0.0
@@ -277,95 +491,117 @@ def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab
     Fi = np.zeros(4)
     flux_e = bc_type[0] == 2
     flux_i = bc_type[1] == 2
-    _probes(T, pa, pb, pw, P[0])
+    the = bc_theta[0]
+    thi = bc_theta[1]
+    _probes(Tn, pa, pb, pw, P, 0)
     k_out = 0
-    while k_out < n_out and out_step[k_out] < 0:
-        k_out += 1
     for n in range(n_steps):
-        if nonlinear and m > 0:
-            # conductances at the extrapolated mid-step temperature (second order for CN)
-            for j in range(n_nodes):
-                Tlin[j] = 1.5 * T[j] - 0.5 * Tprev[j] if n > 0 else T[j]
-            _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, Tlin)
-            _assemble(cap, g, theta, bc_type, bc_h, bc_theta, dt, j0, m, Ad, Aoff, Bd, Boff, p)
-            _factor(Ad, Aoff, m, cp, inv)
-        for j in range(n_nodes):
-            Tprev[j] = T[j]
+        if bc_type[0] == 0:
+            Tnew[0] = ue[n + 1]
+        if bc_type[1] == 0:
+            Tnew[n_nodes - 1] = ui[n + 1]
+        # explicit part of the link fluxes
+        if nonlinear:
+            if n > 0:
+                for j in range(n_nodes):
+                    Tmid_old[j] = Tmid[j]
+                    Tmid[j] = 1.5 * Tn[j] - 0.5 * Told[j]
+                n_big, n_drift = _step_conductances(gs, g_ref, g0, tol, coef, Tmid, Tmid_old, Ea, Eb)
+                if n % 1024 == 0 or n_big > 0.0 or has_table:
+                    _exact_factors(coef, tref, Tmid, Ea, Eb)
+                    _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table,
+                                            Tmid, Ea, Eb)
+                    n_drift = 0.0
+                    for lnk in range(n_links):
+                        if abs(gs[lnk] - g0[lnk]) > tol[lnk]:
+                            n_drift += 1.0
+                if n_drift > 0.0 and m > 0:
+                    for lnk in range(n_links):
+                        g0[lnk] = gs[lnk]
+                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2)
+                    _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol)
+            # predictor T~ (kept in Tnew for the unknowns; the known face nodes hold T^{n+1})
+            for j in range(j0, j0 + m):
+                Tnew[j] = 2.0 * Tn[j] - Told[j] if n > 0 else Tn[j]
+            for lnk in range(n_links):
+                th = theta[lnk]
+                dp = Tnew[lnk] - Tnew[lnk + 1]
+                Epad[lnk + 1] = gs[lnk] * (th * dp + (1.0 - th) * (Tn[lnk] - Tn[lnk + 1])) - th * g0[lnk] * dp
+        else:
+            for lnk in range(n_links):
+                Epad[lnk + 1] = (1.0 - theta[lnk]) * g0[lnk] * (Tn[lnk] - Tn[lnk + 1])
         if m > 0:
             for i in range(m):
-                v = Bd[i] * T[j0 + i]
-                if i > 0:
-                    v += Boff[i - 1] * T[j0 + i - 1]
-                if i < m - 1:
-                    v += Boff[i] * T[j0 + i + 1]
-                rhs[i] = v
-            rhs[0] += p[0] * ue[n + 1] + p[1] * ue[n]
-            rhs[m - 1] += p[2] * ui[n + 1] + p[3] * ui[n]
-            _solve(Aoff, cp, inv, rhs, x, m)
-            for i in range(m):
-                T[j0 + i] = x[i]
+                j = j0 + i
+                rhs[i] = cdt[j] * Tn[j] + Epad[j] - Epad[j + 1]
+            if bc_type[0] == 0:
+                rhs[0] += theta[0] * g0[0] * ue[n + 1]
+            elif bc_type[0] == 1:
+                rhs[0] += bc_h[0] * (the * ue[n + 1] + (1.0 - the) * (ue[n] - Tn[0]))
+            else:
+                rhs[0] += the * ue[n + 1] + (1.0 - the) * ue[n]
+            if bc_type[1] == 0:
+                rhs[m - 1] += theta[n_links - 1] * g0[n_links - 1] * ui[n + 1]
+            elif bc_type[1] == 1:
+                rhs[m - 1] += bc_h[1] * (thi * ui[n + 1] + (1.0 - thi) * (ui[n] - Tn[n_nodes - 1]))
+            else:
+                rhs[m - 1] -= thi * ui[n + 1] + (1.0 - thi) * ui[n]
+            _solve_lean(inv, f1, f2, rhs, Tnew, m, j0)
+        # step-average face fluxes F^{n+1/2} (the scheme's own link fluxes: energy is conserved exactly)
         if bc_type[0] == 0:
-            T[0] = ue[n + 1]
-        if bc_type[1] == 0:
-            T[n_nodes - 1] = ui[n + 1]
-        # step-average face fluxes F^{n+1/2} (the scheme's own, so energy is conserved exactly)
-        if bc_type[0] == 0:
-            th = theta[0]
-            fe = g[0] * (th * (T[0] - T[1]) + (1.0 - th) * (Tprev[0] - Tprev[1])) + cap[0] * (T[0] - Tprev[0]) / dt
+            fe = Epad[1] + theta[0] * g0[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0])
         elif bc_type[0] == 1:
-            th = bc_theta[0]
-            fe = bc_h[0] * (th * (ue[n + 1] - T[0]) + (1.0 - th) * (ue[n] - Tprev[0]))
+            fe = bc_h[0] * (the * (ue[n + 1] - Tnew[0]) + (1.0 - the) * (ue[n] - Tn[0]))
         else:
-            fe = bc_theta[0] * ue[n + 1] + (1.0 - bc_theta[0]) * ue[n]
+            fe = the * ue[n + 1] + (1.0 - the) * ue[n]
         if bc_type[1] == 0:
-            lk = n_nodes - 2
-            th = theta[lk]
-            fi = g[lk] * (th * (T[lk] - T[lk + 1]) + (1.0 - th) * (Tprev[lk] - Tprev[lk + 1]))
-            fi -= cap[n_nodes - 1] * (T[n_nodes - 1] - Tprev[n_nodes - 1]) / dt
+            lk = n_links - 1
+            fi = Epad[lk + 1] + theta[lk] * g0[lk] * (Tnew[lk] - Tnew[lk + 1])
+            fi -= cdt[n_nodes - 1] * (Tnew[n_nodes - 1] - Tn[n_nodes - 1])
         elif bc_type[1] == 1:
-            th = bc_theta[1]
-            fi = bc_h[1] * (th * (T[n_nodes - 1] - ui[n + 1]) + (1.0 - th) * (Tprev[n_nodes - 1] - ui[n]))
+            fi = bc_h[1] * (thi * (Tnew[n_nodes - 1] - ui[n + 1]) + (1.0 - thi) * (Tn[n_nodes - 1] - ui[n]))
         else:
-            fi = bc_theta[1] * ui[n + 1] + (1.0 - bc_theta[1]) * ui[n]
+            fi = thi * ui[n + 1] + (1.0 - thi) * ui[n]
         e_in += dt * fe
         e_out += dt * fi
         Fe[n % 4] = fe
         Fi[n % 4] = fi
-        _probes(T, pa, pb, pw, P[(n + 1) % 4])
+        # rotate the state buffers (no copies): T^{n-1} <- T^n <- T^{n+1}
+        tmp = Told
+        Told = Tn
+        Tn = Tnew
+        Tnew = tmp
+        _probes(Tn, pa, pb, pw, P, (n + 1) % 4)
         # outputs between grid nk and nk + 1 are complete once F^{nk+3/2} is known (nk = n - 1)
         while k_out < n_out and out_step[k_out] <= n - 1:
-            nk = out_step[k_out]
-            w = out_w[k_out]
-            for q in range(n_pr):
-                out[q, k_out] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
-            out[n_pr, k_out] = ((1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e)
-                                + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e))
-            out[n_pr + 1, k_out] = ((1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i)
-                                    + w * _face_flux(Fi, nk + 1, n_steps, ui, flux_i))
+            _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out)
             k_out += 1
     while k_out < n_out:  # outputs in the last step
-        nk = out_step[k_out]
-        w = out_w[k_out]
-        for q in range(n_pr):
-            out[q, k_out] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
-        out[n_pr, k_out] = ((1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e)
-                            + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e))
-        out[n_pr + 1, k_out] = ((1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i)
-                                + w * _face_flux(Fi, nk + 1, n_steps, ui, flux_i))
+        _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out)
         k_out += 1
     e_end = 0.0
     for j in range(n_nodes):
-        e_end += cap[j] * T[j]
+        e_end += cap[j] * Tn[j]
     energy[0] = e_end - e_start
     energy[1] = e_in
     energy[2] = e_out
-    # final state is returned through Tinit's companion in run_batch
-    return T
+    return Tn
+
+
+@njit(cache=True)
+def _output(k, nk, w, P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out):
+    n_pr = P.shape[1]
+    for q in range(n_pr):
+        out[q, k] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
+    out[n_pr, k] = ((1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e)
+                    + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e))
+    out[n_pr + 1, k] = ((1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i)
+                        + w * _face_flux(Fi, nk + 1, n_steps, ui, flux_i))
 
 
 @njit(parallel=True, cache=True)
 def run_batch(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-              bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, Tinit):
+              bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, Tinit, drift=0.02):
     """Run every candidate wall of a batch.
 
     Parameters (c = candidate, j = node, l = link, k = output time, p = probe)
@@ -383,6 +619,7 @@ def run_batch(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, ta
     out_step, out_w : (k,) output time = grid (out_step + out_w); out_step -1 never used
     pa, pb, pw : (c, p) probe interpolation
     Tinit : (c, j) initial node temperatures, or shape (c, 0) for the steady start
+    drift : relative drift of a lambda(T) conductance that triggers a refactorisation (0: every step)
 
     Returns
     -------
@@ -398,5 +635,55 @@ def run_batch(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, ta
     for c in prange(nc):
         Tend[c] = _run_one(cap[c], g_ref[c], theta[c], kind[c], coef[c], tref[c], tab_start[c], tab_len[c],
                            tab_T, tab_v, nonlinear, bc_type, bc_h[c], bc_theta[c], ue, ui, dt,
-                           out_step, out_w, pa[c], pb[c], pw[c], out[c], energy[c], Tinit[c])
+                           out_step, out_w, pa[c], pb[c], pw[c], out[c], energy[c], Tinit[c], drift)
     return out, energy, Tend
+
+
+@njit(cache=True)
+def run_serial(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
+               bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, Tinit, drift=0.02):
+    """:func:`run_batch` on the calling thread (small batches: no thread wake-up latency)."""
+    nc = cap.shape[0]
+    n_q = pa.shape[1] + 2
+    out = np.full((nc, n_q, out_step.shape[0]), np.nan)
+    energy = np.zeros((nc, 3))
+    Tend = np.zeros(cap.shape)
+    for c in range(nc):
+        Tend[c] = _run_one(cap[c], g_ref[c], theta[c], kind[c], coef[c], tref[c], tab_start[c], tab_len[c],
+                           tab_T, tab_v, nonlinear, bc_type, bc_h[c], bc_theta[c], ue, ui, dt,
+                           out_step, out_w, pa[c], pb[c], pw[c], out[c], energy[c], Tinit[c], drift)
+    return out, energy, Tend
+
+
+@njit(cache=True)
+def link_thetas(cap, g, theta0, dt, stiff_limit, known_e, known_i):
+    """theta per link and per boundary term, and the number of links made fully implicit.
+
+    A link is fully implicit when it touches an unknown node without heat capacity, or when
+    ``g dt (1/c_a + 1/c_b) > stiff_limit`` (known face nodes count as infinite capacity); a
+    boundary term is fully implicit when its face node has no capacity. Only for theta0 < 1.
+    """
+    nc, n_nodes = cap.shape
+    n_links = g.shape[1]
+    theta = np.full((nc, n_links), theta0)
+    bc_theta = np.full((nc, 2), theta0)
+    n_forced = np.zeros(nc, dtype=np.int64)
+    inv_c = np.empty(n_nodes)
+    for c in range(nc):
+        for j in range(n_nodes):
+            inv_c[j] = 1.0 / cap[c, j] if cap[c, j] > 0.0 else np.inf
+        if known_e:
+            inv_c[0] = 0.0
+        if known_i:
+            inv_c[n_nodes - 1] = 0.0
+        if theta0 < 1.0:
+            for lnk in range(n_links):
+                pair = g[c, lnk] * dt * (inv_c[lnk] + inv_c[lnk + 1])
+                if not np.isfinite(pair) or pair > stiff_limit:
+                    theta[c, lnk] = 1.0
+                    n_forced[c] += 1
+        if not np.isfinite(inv_c[0]):
+            bc_theta[c, 0] = 1.0
+        if not np.isfinite(inv_c[n_nodes - 1]):
+            bc_theta[c, 1] = 1.0
+    return theta, bc_theta, n_forced
