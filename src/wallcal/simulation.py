@@ -253,35 +253,53 @@ def flux_probe_depths(wall, depth: float) -> tuple[float, float, float]:
     return (max(depth - h, 0.0), depth, min(depth + h, wall.thickness))
 
 
-def _layer_conductivity(wall, x: float, temperature):
-    """Conductivity [W/(m K)] at depth x (a point inside one layer) and temperature [degC] (scalar or array)."""
+def _layer_at(wall, x: float):
     bounds = wall.interfaces
-    i = int(np.clip(np.searchsorted(bounds, x, side="right") - 1, 0, len(wall.layers) - 1))
-    layer = wall.layers[i]
+    return wall.layers[int(np.clip(np.searchsorted(bounds, x, side="right") - 1, 0, len(wall.layers) - 1))]
+
+
+def _conductivity(layer, temperature):
     if layer.is_massless:
         return layer.thickness / layer.thermal_resistance if layer.thickness > 0 else np.inf
     return layer.conductivity_at(temperature)
 
 
+def _effusivity(layer) -> float:
+    """sqrt(lambda rho c) [J/(m2 K s^0.5)]: on a grid with dx ~ sqrt(C alpha dt), a layer's half cell next to an
+    interface holds a heat capacity proportional to it."""
+    if layer.is_massless:
+        return 0.0
+    return float(np.sqrt(layer.conductivity_at(layer.reference_temperature) * layer.volumetric_heat_capacity))
+
+
 def flux_at_depth(wall, depth: float, t_minus, t_at, t_plus):
     """Heat flux density [W/m2], positive towards the interior, at ``depth`` inside the wall.
 
-    From the temperatures of three probes at depth - h, depth and depth + h (linear between nodes):
-    q = (lambda_l (T(x-h) - T(x)) / h_l + lambda_r (T(x) - T(x+h)) / h_r) / 2, each conductivity that of
-    the layer the half-interval lies in, at the half-interval's mean temperature. At a node this is
-    the mean of the two adjacent link fluxes (a central difference); across a layer interface it
-    uses each side's own conductivity.
+    From the temperatures of three probes at depth - h, depth and depth + h (h = 1 mm; probes are linear
+    between nodes, so each half gives the flux of the link it lies in): q_l = lambda_l (T(x-h) - T(x)) / h
+    and q_r = lambda_r (T(x) - T(x+h)) / h at the half-interval's mean temperature. Inside a layer
+    q = (q_l + q_r) / 2 (a central difference at a node). At a layer interface the heat stored in the two
+    half cells between the links must be shared out: q = (b_r q_l + b_l q_r) / (b_l + b_r) with b each layer's
+    effusivity, to which the half cells' capacities are proportional on a C-rule grid.
     """
     xm, x0, xp = flux_probe_depths(wall, depth)
     t_minus, t_at, t_plus = (np.asarray(v, dtype=float) for v in (t_minus, t_at, t_plus))
-    parts = []
+    halves = []
     if x0 > xm:
-        lam = _layer_conductivity(wall, 0.5 * (xm + x0), 0.5 * (t_minus + t_at))
-        parts.append(lam * (t_minus - t_at) / (x0 - xm))
+        layer = _layer_at(wall, 0.5 * (xm + x0))
+        halves.append((layer, _conductivity(layer, 0.5 * (t_minus + t_at)) * (t_minus - t_at) / (x0 - xm)))
     if xp > x0:
-        lam = _layer_conductivity(wall, 0.5 * (x0 + xp), 0.5 * (t_at + t_plus))
-        parts.append(lam * (t_at - t_plus) / (xp - x0))
-    return sum(parts) / len(parts)
+        layer = _layer_at(wall, 0.5 * (x0 + xp))
+        halves.append((layer, _conductivity(layer, 0.5 * (t_at + t_plus)) * (t_at - t_plus) / (xp - x0)))
+    if len(halves) == 1:
+        return halves[0][1]
+    (ll, ql), (lr, qr) = halves
+    if ll is lr:
+        return 0.5 * (ql + qr)
+    bl, br = _effusivity(ll), _effusivity(lr)
+    if bl + br == 0:
+        return 0.5 * (ql + qr)
+    return (br * ql + bl * qr) / (bl + br)
 
 
 def _boundary_named(frame: pd.DataFrame, study: Study) -> pd.DataFrame:

@@ -27,7 +27,8 @@ step_reductions             4        Hooke-Jeeves stops after this many step red
 min_improvement             1e-6     a Hooke-Jeeves move counts as a success only if it lowers the
                                      objective by more than this fraction (flat valleys would otherwise
                                      creep on at one step size for thousands of simulations)
-polish                      true     finish with a bounded least-squares polish (squared-error objectives)
+polish                      true     finish with a bounded least-squares polish (for RMSE-type objectives it
+                                     minimises the sum of squared RMSE/scale, a smooth surrogate)
 polish_max_evaluations      60       Jacobian batches allowed in the polish (each n + 1 simulations)
 ==========================  =======  ===============================================================
 """
@@ -347,15 +348,16 @@ def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, res
 def least_squares_refine(rec: Recorder, residuals, u0, max_jacobians: int = 60, diff_step: float = 1e-6):
     """Bounded least squares (scipy TRF) from u0; the Jacobian's columns are one batch of n + 1 runs.
 
-    ``residuals(U) -> (c, n_res)`` with sum(r^2) the objective.
+    ``residuals(U) -> (objective (c,), residuals (c, n_res))``: least squares minimises sum(r^2), which is
+    the objective for the squared-error objectives and a smooth surrogate (sum of squared RMSE / scale)
+    for the RMSE-type ones; the recorder keeps the true objective of every point evaluated.
     """
     from scipy.optimize import least_squares
 
     cache: dict[bytes, np.ndarray] = {}
 
     def res_batch(U):
-        R = residuals(U)
-        f = np.einsum("ij,ij->i", R, R)
+        f, R = residuals(U)
         # record the evaluations (best point, history)
         rec.evaluations += len(U)
         k = int(np.argmin(f))

@@ -105,18 +105,25 @@ class Evaluator:
         self.evaluations += X.shape[0]
         self.seconds += time.perf_counter() - t
         sim = res.out[:, self.rows, :]
-        for k, halves in self.depth_fluxes:
-            q = 0.0
+        for k, halves in self.depth_fluxes:  # as simulation.flux_at_depth, with each candidate's properties
+            qs, bs = [], []
             for ra, rb, h, li in halves:
                 ta, tb = res.out[:, ra, :], res.out[:, rb, :]
                 lam = props.conductivity[:, li, None]
                 if self.wall.layers[li].is_massless:
                     lam = self.wall.layers[li].thickness / props.thermal_resistance[:, li, None]
+                    bs.append(np.zeros((len(X), 1)))
                 else:
+                    bs.append(np.sqrt(props.conductivity[:, li, None] * props.volumetric_heat_capacity[:, li, None]))
                     f = props.temperature_coefficient[:, li, None]
                     lam = lam * np.exp(f * (0.5 * (ta + tb) - props.reference_temperature[:, li, None]))
-                q = q + lam * (ta - tb) / h
-            sim[:, k, :] = q / len(halves)
+                qs.append(lam * (ta - tb) / h)
+            if len(qs) == 1:
+                sim[:, k, :] = qs[0]
+            elif halves[0][3] == halves[1][3] or not (bs[0] + bs[1]).all():
+                sim[:, k, :] = 0.5 * (qs[0] + qs[1])
+            else:
+                sim[:, k, :] = (bs[1] * qs[0] + bs[0] * qs[1]) / (bs[0] + bs[1])
         return sim
 
     def errors(self, X: np.ndarray) -> np.ndarray:
@@ -148,6 +155,13 @@ class Evaluator:
         out = self.objective_from(cse)
         return np.where(np.isfinite(out), out, np.inf)
 
+    def objective_and_residuals(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The objective and the residual vectors of every candidate from one batch run."""
+        R = self.residuals(X)
+        e2 = self._last_cse
+        out = self.objective_from(e2)
+        return np.where(np.isfinite(out), out, np.inf), R
+
     def residuals(self, X: np.ndarray) -> np.ndarray:
         """Residual vectors r with sum(r^2) = objective for the squared-error objectives, shape (c, n_res).
 
@@ -155,6 +169,7 @@ class Evaluator:
         sum of squared RMSE/scale (a smooth surrogate used by least squares).
         """
         e = self.errors(X)
+        self._last_cse = np.einsum("ctk,ctk->ct", e, e)
         w = np.ones(len(self.rows))
         if self.space.objective == "weighted_cse":
             w = np.asarray(self.weights, dtype=float)
