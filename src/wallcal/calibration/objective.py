@@ -84,6 +84,11 @@ class Evaluator:
                 self.scale.append(acc)
             else:
                 self.scale.append(1.0)
+        self.wanted_rows = np.zeros(npr + 2, dtype=bool)
+        self.wanted_rows[self.rows] = True
+        for _, halves in self.depth_fluxes:
+            for ra, rb, _h, _li in halves:
+                self.wanted_rows[[ra, rb]] = True
         self.y = np.array(self.y)
         self.mask = np.array(self.mask)
         self.n_valid = self.mask.sum(axis=1)
@@ -101,7 +106,7 @@ class Evaluator:
         for k, name in enumerate(self.engine.probe_names):
             if name in depths:
                 pd_[:, k] = depths[name]
-        res = self.engine.run_batch(props, pd_)
+        res = self.engine.run_batch(props, pd_, rows=self.wanted_rows)
         self.evaluations += X.shape[0]
         self.seconds += time.perf_counter() - t
         sim = res.out[:, self.rows, :]

@@ -215,7 +215,8 @@ class PreparedFD:
         return (not self.nonlinear) and m >= 1 and bool((cap[:, j0:j0 + m] > 0).all()) and not n_forced.any()
 
     def run_batch(self, props: PropertyArrays, probe_depths: np.ndarray | None = None,
-                  initial_state: np.ndarray | None = None, path: str = "auto") -> BatchResult:
+                  initial_state: np.ndarray | None = None, path: str = "auto",
+                  rows: np.ndarray | None = None) -> BatchResult:
         """Run candidate walls given as property arrays.
 
         Parameters
@@ -230,6 +231,9 @@ class PreparedFD:
             ``"auto"`` takes the exact modal fast path whenever the walls allow it
             (see :mod:`wallcal.engines.modal`), else the general tridiagonal path.
             The result's ``path`` attribute says which ran.
+        rows : ndarray of bool, shape (n_probes + 2,), optional
+            Output rows wanted (probes, then exterior and interior flux); the fast path forms only
+            these (the others are NaN), which saves time when calibrating on a few targets.
         """
         nc = props.n_candidates
         if probe_depths is None:
@@ -244,7 +248,7 @@ class PreparedFD:
             raise EngineError("the modal fast path needs constant conductivities, heat capacity at every "
                               "unknown node and no stiff links; use path='general'")
         if path in ("auto", "modal") and possible:
-            return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced)
+            return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced, rows)
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         kind = np.broadcast_to(self.kind, g.shape).copy()
@@ -277,13 +281,14 @@ class PreparedFD:
                                            self.ui, self.dt)
         return self._plan
 
-    def _run_modal(self, cap, g, pa, pb, pw, initial_state, n_forced) -> BatchResult:
+    def _run_modal(self, cap, g, pa, pb, pw, initial_state, n_forced, rows=None) -> BatchResult:
         nc, n_nodes = cap.shape
+        want = np.ones(pa.shape[1] + 2, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         base, wp, wf, feat = self._output_plan()
         run = modal.modal_serial if nc == 1 else modal.modal_batch
         out, tend = run(cap, g, pa, pb, pw, self.bc_type, self.bc_h, self.theta, self.dt, self._modal_steps(),
-                        self.ue, self.ui, base, wp, wf, feat, t0)
+                        self.ue, self.ui, base, wp, wf, feat, want, t0)
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         energy = np.full((nc, 3), np.nan)

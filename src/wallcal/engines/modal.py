@@ -275,8 +275,12 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
 
 
 @njit(cache=True, fastmath=True)
-def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, out, t0, tend):
-    """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,)."""
+def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, want, out, t0, tend):
+    """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,).
+
+    ``want`` (n_q,) bool: the output rows to form (others are left NaN); fewer rows need fewer
+    eigenvector components and less work per output time.
+    """
     n_nodes = cap.shape[0]
     j0 = 1 if bc_type[0] == 0 else 0
     m = (n_nodes - 1 if bc_type[1] == 0 else n_nodes) - j0
@@ -287,6 +291,10 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp
     G_nodes = np.empty((n_q, m))
     D = np.empty((n_q, N_FEAT))
     pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
+    for q in range(n_q):
+        if not want[q]:
+            for i in range(m):
+                G_nodes[q, i] = 0.0
     # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
     dinv = np.empty(m)
     for i in range(m):
@@ -361,7 +369,7 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp
         cur = base[k_out]
         nxt = base[k_out + 1] if k_out + 1 < n_out else n_steps
         move = cur + 3 <= nxt
-        _form(k_out, cur, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, zp, zf, out)
+        _form(k_out, cur, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, want, zp, zf, out)
         if move:
             cur += 3
     _advance(z, mu, r0, r1, s, cur, n_steps)
@@ -414,7 +422,7 @@ def _advance(z, mu, r0, r1, s, n_from, n_to):
 
 
 @njit(cache=True, fastmath=True)
-def _form(k_out, nb, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, zp, zf, out):
+def _form(k_out, nb, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, want, zp, zf, out):
     """Output k_out from the state z at its base step nb.
 
     The states nb + 1 .. nb + 3 are stepped on from z mode by mode (nothing is stored), and
@@ -443,6 +451,9 @@ def _form(k_out, nb, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, zp, zf, ou
         zf[k] = f0 * z0 + f1 * z1 + f2 * z2 + f3 * z3
         z[k] = z3 if move else z0
     for q in range(G.shape[0]):
+        if not want[q]:
+            out[q, k_out] = np.nan
+            continue
         acc = 0.0
         if q < npr:
             for k in range(m):
@@ -456,7 +467,7 @@ def _form(k_out, nb, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, zp, zf, ou
 
 
 @njit(parallel=True, cache=True)
-def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, t0):
+def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, want, t0):
     """Run every candidate through its modal recursion (see module docstring).
 
     Parameters (c = candidate, j = node, l = link, p = probe, k = output time)
@@ -467,6 +478,7 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, w
     theta, dt : scheme weight and time step [s]
     s : (n_steps, 2) theta-weighted inputs per step; ue, ui : (n_steps + 1,) inputs
     base, wp, wf, feat : output plan (:func:`output_plan`)
+    want : (p + 2,) bool, the output rows to form (the others are NaN)
     t0 : (c, j) initial node temperatures, or shape (c, 0) for the steady state of the first inputs
 
     Returns out (c, p + 2, k) and the final node temperatures (c, j) (known face nodes included).
@@ -476,17 +488,17 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, w
     tend = np.empty(cap.shape)
     for c in prange(nc):
         _modal_one(cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat,
-                   out[c], t0[c], tend[c])
+                   want, out[c], t0[c], tend[c])
     return out, tend
 
 
 @njit(cache=True)
-def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, t0):
+def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, want, t0):
     """:func:`modal_batch` on the calling thread (small batches: no thread wake-up latency)."""
     nc = cap.shape[0]
     out = np.empty((nc, pa.shape[1] + 2, base.shape[0]))
     tend = np.empty(cap.shape)
     for c in range(nc):
         _modal_one(cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat,
-                   out[c], t0[c], tend[c])
+                   want, out[c], t0[c], tend[c])
     return out, tend
