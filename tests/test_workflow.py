@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 
 import pytest
-from conftest import EXAMPLE, REPO
 
+from conftest import EXAMPLE, REPO
 from wallcal import load_study
 from wallcal.cli import main
 
