@@ -483,5 +483,6 @@ def summarize(frame: pd.DataFrame, start, end) -> pd.DataFrame:
         rows[col] = dict(n=len(v), max=v.max(), min=v.min(), range=v.max() - v.min(), mean=v.mean(),
                          effective=float(np.sqrt(np.mean(v**2))))
     out = pd.DataFrame.from_dict(rows, orient="index")
+    out["n"] = out["n"].astype(int)
     out.index.name = "signal"
     return out

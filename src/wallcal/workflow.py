@@ -147,7 +147,7 @@ def _stage_grid(ctx: RunContext, d: Path, so: StageOutput):
 
     kw = {"time_steps": (60, 300, 900), "grid_constants": (1, 2, 3)} if ctx.quick else {}
     targets = list(ctx.study.calibration.get("targets") or []) or None
-    res = grid_study(ctx.study, targets=targets, **kw)
+    res = grid_study(ctx.study, targets=targets, progress=ctx.progress, **kw)
     res.write_into(d)
     so.files += ["grid_study.csv", "rmse_vs_time_step.csv", "convergence.csv", "grid_study.json", "grid_study.png"]
     so.text += res.summary().splitlines()
