@@ -43,18 +43,21 @@ def main() -> None:
     t = time.perf_counter()
     s = sensitivity(study, "sobol", space=sub, n=1024, prepared=prep, progress=False, second_order=args.second_order)
     dt = time.perf_counter() - t
-    print(f"sobol N=1024, {sub.n} parameters: {s.evaluations} simulations in {dt:.1f} s "
-          f"({s.evaluations / dt:.0f}/s) -> {'OK' if dt <= 60 else 'SLOW'} (target 60 s)")
+    print(
+        f"sobol N=1024, {sub.n} parameters: {s.evaluations} simulations in {dt:.1f} s "
+        f"({s.evaluations / dt:.0f}/s) -> {'OK' if dt <= 60 else 'SLOW'} (target 60 s)"
+    )
     print(s.ranking[["layer", "ST", "ST_conf", "S1"]].head(6).to_string())
     if args.skip_posterior:
         return
-    x0 = load_optimum(space, args.from_dir) if args.from_dir else calibrate(study, progress=False,
-                                                                             prepared=prep).x_opt
+    x0 = load_optimum(space, args.from_dir) if args.from_dir else calibrate(study, progress=False, prepared=prep).x_opt
     t = time.perf_counter()
     r = posterior(study, x_start=x0, walkers=72, steps=1389, prepared=prep, progress=False)
     dt = time.perf_counter() - t
-    print(f"posterior: {r.evaluations} evaluations in {dt:.1f} s ({r.evaluations / dt:.0f}/s) -> "
-          f"{'OK' if dt <= 120 else 'SLOW'} (target 120 s)")
+    print(
+        f"posterior: {r.evaluations} evaluations in {dt:.1f} s ({r.evaluations / dt:.0f}/s) -> "
+        f"{'OK' if dt <= 120 else 'SLOW'} (target 120 s)"
+    )
     print(r.report())
     k, n = r.coverage()
     print(f"truth inside the 95 % interval for {k} of {n} parameters called identified")

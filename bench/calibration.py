@@ -49,8 +49,7 @@ def run_space(study, space, algos, prepared):
     for name in algos:
         try:
             t = time.perf_counter()
-            res = calibrate(study, algorithm=name, settings=ALGOS[name], progress=False, prepared=prepared,
-                            space=space)
+            res = calibrate(study, algorithm=name, settings=ALGOS[name], progress=False, prepared=prepared, space=space)
             rows.append((name, res, time.perf_counter() - t))
         except Exception as exc:  # report and go on (e.g. cma not installed)
             print(f"  {name}: not run ({exc})")
@@ -60,8 +59,10 @@ def run_space(study, space, algos, prepared):
 def report(title, rows, reference=None):
     best = min([r.f_opt for _, r, _ in rows] + ([reference] if reference else []))
     print(f"\n{title}\nbest attainable (min over runs{' and the reference' if reference else ''}): {best:.6g}")
-    head = (f"{'algorithm':24s} {'objective':>11s} {'sims':>7s} {'seconds':>8s} | {'1 %':>14s} "
-            f"{'0.1 %':>14s} {'0.01 %':>14s}")
+    head = (
+        f"{'algorithm':24s} {'objective':>11s} {'sims':>7s} {'seconds':>8s} | {'1 %':>14s} "
+        f"{'0.1 %':>14s} {'0.01 %':>14s}"
+    )
     print(head)
     print("-" * len(head))
     for name, res, wall in rows:
@@ -81,8 +82,12 @@ def main(argv=None):
     study = wallcal.load_study(EXAMPLE)
     prepared = prepare(study)
     # warm the kernels (compilation or cache load) outside the timings
-    calibrate(study, settings={"particles": 4, "generations": 2, "step_reductions": 0, "polish": False},
-              progress=False, prepared=prepared)
+    calibrate(
+        study,
+        settings={"particles": 4, "generations": 2, "step_reductions": 0, "polish": False},
+        progress=False,
+        prepared=prepared,
+    )
     space18 = parse_space(study)
     rows = run_space(study, space18, algos, prepared)
     report(f"18 parameters (the example's [calibration]); base case objective {rows[0][1].f_base:.6g}", rows)
@@ -90,8 +95,12 @@ def main(argv=None):
     if pso:
         r = pso[0]
         rm = r.metrics[r.metrics.case == "calibrated"].set_index("signal")["rmse"]
-        print("pso-hj RMSE after: " + ", ".join(f"{t} {rm[t]:.3f}" for t in r.space.targets)
-              + "; noise floors: " + ", ".join(f"{k} {v:.3f}" for k, v in r.floors.items() if k in r.space.targets))
+        print(
+            "pso-hj RMSE after: "
+            + ", ".join(f"{t} {rm[t]:.3f}" for t in r.space.targets)
+            + "; noise floors: "
+            + ", ".join(f"{k} {v:.3f}" for k, v in r.floors.items() if k in r.space.targets)
+        )
     if not args.skip_15:
         space15 = parse_space(study, tied_15(study))
         rows15 = run_space(study, space15, algos, prepared)
@@ -100,10 +109,15 @@ def main(argv=None):
         if best:
             r = best[0]
             rm = r.metrics[r.metrics.case == "calibrated"].set_index("signal")["rmse"]
-            print(f"pso-hj: CSE {r.f_opt:.4f} (reference 222.57); RMSE "
-                  + ", ".join(f"{t} {rm[t]:.3f}" for t in r.space.targets) + " (reference 0.136 / 0.157 / 0.231)")
-    print(f"\nnumba threads: {__import__('numba').get_num_threads()}; seed "
-          f"{study.calibration.get('seed', 1)} (the same seed gives the same result)")
+            print(
+                f"pso-hj: CSE {r.f_opt:.4f} (reference 222.57); RMSE "
+                + ", ".join(f"{t} {rm[t]:.3f}" for t in r.space.targets)
+                + " (reference 0.136 / 0.157 / 0.231)"
+            )
+    print(
+        f"\nnumba threads: {__import__('numba').get_num_threads()}; seed "
+        f"{study.calibration.get('seed', 1)} (the same seed gives the same result)"
+    )
 
 
 if __name__ == "__main__":

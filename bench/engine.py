@@ -43,8 +43,10 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     # fresh process: import + first simulation (numba kernels come from the on-disk cache)
-    code = ("import time; t = time.perf_counter(); import wallcal; "
-            f"s = wallcal.load_study({str(EXAMPLE)!r}); wallcal.simulate(s); print(time.perf_counter() - t)")
+    code = (
+        "import time; t = time.perf_counter(); import wallcal; "
+        f"s = wallcal.load_study({str(EXAMPLE)!r}); wallcal.simulate(s); print(time.perf_counter() - t)"
+    )
     fresh = []
     for _ in range(3):
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -65,8 +67,12 @@ def main(argv=None):
     n_steps = prep_data.inp.n_steps
     res = prep.run_batch(one)
     rows.append(row(f"one simulation, engine ({res.path} fast path)", timeit(lambda: prep.run_batch(one), args.repeat)))
-    rows.append(row("one simulation, engine (general tridiagonal path)",
-                    timeit(lambda: prep.run_batch(one, path="general"), args.repeat)))
+    rows.append(
+        row(
+            "one simulation, engine (general tridiagonal path)",
+            timeit(lambda: prep.run_batch(one, path="general"), args.repeat),
+        )
+    )
 
     rng = np.random.default_rng(1)
     walls = []
@@ -74,8 +80,12 @@ def main(argv=None):
         w = study.wall
         for layer in w.layers:
             f = 1 + 0.2 * rng.uniform(-1, 1, 3)
-            w = w.replace_layer(layer.id, conductivity=layer.conductivity * f[0], density=layer.density * f[1],
-                                specific_heat=layer.specific_heat * f[2])
+            w = w.replace_layer(
+                layer.id,
+                conductivity=layer.conductivity * f[0],
+                density=layer.density * f[1],
+                specific_heat=layer.specific_heat * f[2],
+            )
         walls.append(w)
     batch = PropertyArrays.from_walls(walls)
     ts = timeit(lambda: prep.run_batch(batch), max(3, args.repeat // 5))
@@ -86,38 +96,63 @@ def main(argv=None):
         nl_wall = nl_wall.replace_layer(lid, conductivity_temperature_coefficient=0.0046)
     nl_prep = eng.prepare(prep_data.with_wall(nl_wall).inp)
     nl_one = PropertyArrays.from_walls([nl_wall])
-    rows.append(row("lambda(T) wall (general path, nonlinear)", timeit(lambda: nl_prep.run_batch(nl_one),
-                                                                       args.repeat)))
+    rows.append(row("lambda(T) wall (general path, nonlinear)", timeit(lambda: nl_prep.run_batch(nl_one), args.repeat)))
     nl_batch = PropertyArrays.from_walls([nl_wall] * 16)
-    rows.append(row("lambda(T) walls, batch of 16 (2 cores), per batch", timeit(lambda: nl_prep.run_batch(nl_batch),
-                                                                            max(3, args.repeat // 5)), per_call=16))
-    rows.append(row("FDEngine.prepare (grid, laws, output plan; once per study)",
-                    timeit(lambda: eng.prepare(prep_data.inp)._output_plan(), args.repeat)))
-    rows.append(row("wallcal.simulate(study) incl. data preparation",
-                    timeit(lambda: wallcal.simulate(study), max(3, args.repeat // 5))))
-    rows.append(row("simulate(prepared=...) (data prepared once)",
-                    timeit(lambda: wallcal.simulate(study, prepared=prep_data), args.repeat)))
-    rows.append(("fresh process: import + first simulation", float(np.median(fresh)), float(fresh.min()),
-                 float(fresh.max()), 1 / float(np.median(fresh))))
+    rows.append(
+        row(
+            "lambda(T) walls, batch of 16 (2 cores), per batch",
+            timeit(lambda: nl_prep.run_batch(nl_batch), max(3, args.repeat // 5)),
+            per_call=16,
+        )
+    )
+    rows.append(
+        row(
+            "FDEngine.prepare (grid, laws, output plan; once per study)",
+            timeit(lambda: eng.prepare(prep_data.inp)._output_plan(), args.repeat),
+        )
+    )
+    rows.append(
+        row(
+            "wallcal.simulate(study) incl. data preparation",
+            timeit(lambda: wallcal.simulate(study), max(3, args.repeat // 5)),
+        )
+    )
+    rows.append(
+        row(
+            "simulate(prepared=...) (data prepared once)",
+            timeit(lambda: wallcal.simulate(study, prepared=prep_data), args.repeat),
+        )
+    )
+    rows.append(
+        (
+            "fresh process: import + first simulation",
+            float(np.median(fresh)),
+            float(fresh.min()),
+            float(fresh.max()),
+            1 / float(np.median(fresh)),
+        )
+    )
 
     # memory: growth of the peak resident set during one engine run on the record repeated k times
     # (kernels warmed up on the plain record; inputs and the prepared step series allocated before;
     # numba allocates outside tracemalloc's view)
-    mem_code = ("import resource, sys, numpy as np, wallcal; from dataclasses import replace; "
-                "from wallcal.engines.fd import FDEngine; from wallcal.grid import PropertyArrays; "
-                "from wallcal.simulation import prepare; "
-                f"s = wallcal.load_study({str(EXAMPLE)!r}); inp = prepare(s).inp; k = int(sys.argv[1]); "
-                "ue = np.append(np.tile(inp.exterior.values[:-1], k), inp.exterior.values[-1]); "
-                "ui = np.append(np.tile(inp.interior.values[:-1], k), inp.interior.values[-1]); "
-                "big = replace(inp, exterior=replace(inp.exterior, values=ue), "
-                "interior=replace(inp.interior, values=ui)); "
-                "w = FDEngine('cn').prepare(inp); one = PropertyArrays.from_walls([s.wall]); "
-                "w.run_batch(one); w.run_batch(one, path='general'); "
-                "p = FDEngine('cn').prepare(big); p._modal_steps(); p._output_plan(); "
-                "r0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; p.run_batch(one); "
-                "r1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; p.run_batch(one, path='general'); "
-                "r2 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
-                "print(len(ue) - 1, len(big.output_positions), r1 - r0, r2 - r1)")
+    mem_code = (
+        "import resource, sys, numpy as np, wallcal; from dataclasses import replace; "
+        "from wallcal.engines.fd import FDEngine; from wallcal.grid import PropertyArrays; "
+        "from wallcal.simulation import prepare; "
+        f"s = wallcal.load_study({str(EXAMPLE)!r}); inp = prepare(s).inp; k = int(sys.argv[1]); "
+        "ue = np.append(np.tile(inp.exterior.values[:-1], k), inp.exterior.values[-1]); "
+        "ui = np.append(np.tile(inp.interior.values[:-1], k), inp.interior.values[-1]); "
+        "big = replace(inp, exterior=replace(inp.exterior, values=ue), "
+        "interior=replace(inp.interior, values=ui)); "
+        "w = FDEngine('cn').prepare(inp); one = PropertyArrays.from_walls([s.wall]); "
+        "w.run_batch(one); w.run_batch(one, path='general'); "
+        "p = FDEngine('cn').prepare(big); p._modal_steps(); p._output_plan(); "
+        "r0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; p.run_batch(one); "
+        "r1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; p.run_batch(one, path='general'); "
+        "r2 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
+        "print(len(ue) - 1, len(big.output_positions), r1 - r0, r2 - r1)"
+    )
     mem = []
     for k in (1, 8):
         out = subprocess.run([sys.executable, "-c", mem_code, str(k)], capture_output=True, text=True, check=True)
@@ -134,9 +169,11 @@ def main(argv=None):
         except Exception as exc:  # report, do not fail the benchmark
             print(f"(EnergyPlus not timed: {exc})")
 
-    print(f"case: bundled example, {len(study.wall.layers)} layers, {prep.grid.n_nodes} nodes, "
-          f"{n_steps} steps of {prep_data.inp.time_step:g} s, {len(prep_data.times)} output times, "
-          f"machine: {os.cpu_count()} cores")
+    print(
+        f"case: bundled example, {len(study.wall.layers)} layers, {prep.grid.n_nodes} nodes, "
+        f"{n_steps} steps of {prep_data.inp.time_step:g} s, {len(prep_data.times)} output times, "
+        f"machine: {os.cpu_count()} cores"
+    )
     head = f"{'case':58s} {'median':>10s} {'min':>10s} {'max':>10s} {'sims/s':>10s}"
     if eplus:
         head += f" {'x EnergyPlus':>13s}"
@@ -150,8 +187,10 @@ def main(argv=None):
     if eplus:
         print(f"{'EnergyPlus 25.2 engine (fictitious zone, one run)':58s} {eplus * 1e3:8.0f}ms")
     for n, n_out, d_modal, d_general in mem:
-        print(f"peak RSS growth of one run after warm-up, {n} steps ({n_out} output times): "
-              f"modal {d_modal} KiB, general {d_general} KiB (inputs {2 * 8 * (n + 1) // 1024} KiB)")
+        print(
+            f"peak RSS growth of one run after warm-up, {n} steps ({n_out} output times): "
+            f"modal {d_modal} KiB, general {d_general} KiB (inputs {2 * 8 * (n + 1) // 1024} KiB)"
+        )
 
 
 if __name__ == "__main__":

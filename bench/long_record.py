@@ -35,27 +35,44 @@ def child(months: float, path: str) -> dict:
     from wallcal.engines.fd import FDEngine
     from wallcal.wall import Layer, Probe, Wall
 
-    wall = Wall((Layer("brick", 0.10, conductivity=0.8, density=1800.0, specific_heat=840.0),
-                 Layer("wool", 0.12, conductivity=0.04, density=60.0, specific_heat=1030.0),
-                 Layer("gypsum", 0.03, conductivity=0.25, density=900.0, specific_heat=1000.0)),
-                tuple(Probe(f"P{i}", d) for i, d in enumerate((0.05, 0.12, 0.2, 0.235))))
+    wall = Wall(
+        (
+            Layer("brick", 0.10, conductivity=0.8, density=1800.0, specific_heat=840.0),
+            Layer("wool", 0.12, conductivity=0.04, density=60.0, specific_heat=1030.0),
+            Layer("gypsum", 0.03, conductivity=0.25, density=900.0, specific_heat=1000.0),
+        ),
+        tuple(Probe(f"P{i}", d) for i, d in enumerate((0.05, 0.12, 0.2, 0.235))),
+    )
     n = int(months * MIN_PER_MONTH)
     dt = 60.0
     t = np.arange(n + 1) * dt
     rng = np.random.default_rng(0)
     ue = 5 + 10 * np.sin(2 * np.pi * t / 86400) + 8 * np.sin(2 * np.pi * t / 3.15e7) + rng.normal(0, 0.3, n + 1)
     ui = 20 + np.sin(2 * np.pi * t / 86400)
-    inp = SimulationInput(wall=wall, t0=pd.Timestamp("2025-01-01"), time_step=dt,
-                          exterior=BoundaryInput("surface_temperature", ue),
-                          interior=BoundaryInput("surface_temperature", ui),
-                          output_positions=np.arange(n + 1, dtype=float), probes=tuple(p.name for p in wall.probes),
-                          flux_faces=("exterior", "interior"), grid_constant=2.0, node_rule="wallcal", scheme="cn",
-                          options={})
+    inp = SimulationInput(
+        wall=wall,
+        t0=pd.Timestamp("2025-01-01"),
+        time_step=dt,
+        exterior=BoundaryInput("surface_temperature", ue),
+        interior=BoundaryInput("surface_temperature", ui),
+        output_positions=np.arange(n + 1, dtype=float),
+        probes=tuple(p.name for p in wall.probes),
+        flux_faces=("exterior", "interior"),
+        grid_constant=2.0,
+        node_rule="wallcal",
+        scheme="cn",
+        options={},
+    )
     eng = FDEngine("cn")
     # compile (and warm caches) on a short record first, so that the timing is the run's own
-    short = SimulationInput(**{**inp.__dict__, "exterior": BoundaryInput("surface_temperature", ue[:200]),
-                               "interior": BoundaryInput("surface_temperature", ui[:200]),
-                               "output_positions": np.arange(200, dtype=float)})
+    short = SimulationInput(
+        **{
+            **inp.__dict__,
+            "exterior": BoundaryInput("surface_temperature", ue[:200]),
+            "interior": BoundaryInput("surface_temperature", ui[:200]),
+            "output_positions": np.arange(200, dtype=float),
+        }
+    )
     eng.run(short, path=path)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     tracemalloc.start()
@@ -69,10 +86,20 @@ def child(months: float, path: str) -> dict:
     n_out_values = (len(wall.probes) + 2) * (n + 1)
     io_bytes = 8 * (2 * (n + 1) + (n + 1) + 2 * n_out_values)  # inputs + output positions + outputs (+ copies)
     assert np.isfinite(out.temperatures["P0"]).all()
-    return {"months": months, "steps": n, "path": out.info["path"], "nodes": out.info["nodes"], "seconds": sec,
-            "us_per_step": 1e6 * sec / n, "traced_peak_MB": peak / 1e6, "io_MB": io_bytes / 1e6,
-            "beyond_io_MB": (peak - io_bytes) / 1e6, "rss_peak_MB": rss1 / 1024, "rss_growth_MB": (rss1 - rss0) / 1024,
-            "energy_residual": out.info.get("energy_residual_J_m2")}
+    return {
+        "months": months,
+        "steps": n,
+        "path": out.info["path"],
+        "nodes": out.info["nodes"],
+        "seconds": sec,
+        "us_per_step": 1e6 * sec / n,
+        "traced_peak_MB": peak / 1e6,
+        "io_MB": io_bytes / 1e6,
+        "beyond_io_MB": (peak - io_bytes) / 1e6,
+        "rss_peak_MB": rss1 / 1024,
+        "rss_growth_MB": (rss1 - rss0) / 1024,
+        "energy_residual": out.info.get("energy_residual_J_m2"),
+    }
 
 
 def main() -> None:
@@ -91,15 +118,20 @@ def main() -> None:
     rows = []
     for path in args.paths:
         for m in args.months:
-            r = subprocess.run([sys.executable, __file__, "--child", str(m), path], capture_output=True, text=True,
-                               env=env, check=True)
+            r = subprocess.run(
+                [sys.executable, __file__, "--child", str(m), path], capture_output=True, text=True, env=env, check=True
+            )
             rows.append(json.loads(r.stdout.strip().splitlines()[-1]))
-    print(f"{'path':8s} {'months':>6s} {'steps':>8s} {'nodes':>5s} {'time s':>7s} {'us/step':>7s} "
-          f"{'traced MB':>9s} {'in+out MB':>9s} {'beyond MB':>9s} {'RSS MB':>7s} {'RSS +MB':>7s}")
+    print(
+        f"{'path':8s} {'months':>6s} {'steps':>8s} {'nodes':>5s} {'time s':>7s} {'us/step':>7s} "
+        f"{'traced MB':>9s} {'in+out MB':>9s} {'beyond MB':>9s} {'RSS MB':>7s} {'RSS +MB':>7s}"
+    )
     for r in rows:
-        print(f"{r['path']:8s} {r['months']:6g} {r['steps']:8d} {r['nodes']:5d} {r['seconds']:7.3f} "
-              f"{r['us_per_step']:7.3f} {r['traced_peak_MB']:9.1f} {r['io_MB']:9.1f} {r['beyond_io_MB']:9.1f} "
-              f"{r['rss_peak_MB']:7.0f} {r['rss_growth_MB']:7.0f}")
+        print(
+            f"{r['path']:8s} {r['months']:6g} {r['steps']:8d} {r['nodes']:5d} {r['seconds']:7.3f} "
+            f"{r['us_per_step']:7.3f} {r['traced_peak_MB']:9.1f} {r['io_MB']:9.1f} {r['beyond_io_MB']:9.1f} "
+            f"{r['rss_peak_MB']:7.0f} {r['rss_growth_MB']:7.0f}"
+        )
     # a full temperature field would be n_nodes * steps * 8 bytes:
     r = rows[-1]
     print(f"\n(a full temperature field of the last run would take {8 * r['nodes'] * r['steps'] / 1e6:.0f} MB)")

@@ -32,8 +32,14 @@ def main():
         report = tmp / "report" / "index.html"
     opts = webdriver.ChromeOptions()
     opts.binary_location = "/usr/bin/chromium"
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-              "--window-size=1400,1000", "--hide-scrollbars"):
+    for a in (
+        "--headless=new",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--window-size=1400,1000",
+        "--hide-scrollbars",
+    ):
         opts.add_argument(a)
     d = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=opts)
     try:
@@ -43,15 +49,21 @@ def main():
         for f in ("measured.csv", "true_wall.toml", "study.toml"):
             shutil.copy(EXAMPLE.parent / f, tmp / f)
         box = {}
-        threading.Thread(target=serve, args=(tmp / "study.toml",),
-                         kwargs={"port": 0, "ready": lambda h: box.update(h=h)}, daemon=True).start()
+        threading.Thread(
+            target=serve,
+            args=(tmp / "study.toml",),
+            kwargs={"port": 0, "ready": lambda h: box.update(h=h)},
+            daemon=True,
+        ).start()
         while "h" not in box:
             time.sleep(0.1)
         d.get(f"http://127.0.0.1:{box['h'].server_address[1]}/")
         while not d.execute_script("return Number(document.body.dataset.version || 0)"):
             time.sleep(0.1)
-        d.execute_script("const r = document.getElementById('ctl-3-conductivity'); r.value = 0.0455;"
-                         "r.dispatchEvent(new Event('input'));")
+        d.execute_script(
+            "const r = document.getElementById('ctl-3-conductivity'); r.value = 0.0455;"
+            "r.dispatchEvent(new Event('input'));"
+        )
         time.sleep(0.8)
         d.save_screenshot(str(DOCS / "live-page.png"))
     finally:

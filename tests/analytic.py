@@ -59,8 +59,11 @@ def periodic_solution(wall, period_s, amp_e, amp_i, depths, with_flux=False):
                 continue
             a, b, layer = seg
             if d >= b:
-                m = (resistance_matrix(layer.thermal_resistance) if layer.is_massless else
-                     layer_matrix(layer.thickness, layer.conductivity, layer.volumetric_heat_capacity, omega))
+                m = (
+                    resistance_matrix(layer.thermal_resistance)
+                    if layer.is_massless
+                    else layer_matrix(layer.thickness, layer.conductivity, layer.volumetric_heat_capacity, omega)
+                )
                 state = m @ state
             elif d > a:
                 if layer.is_massless:

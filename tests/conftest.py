@@ -31,24 +31,49 @@ def base_case_wall() -> Wall:
     import json
 
     d = json.loads((CAMPAIGN / "wall_base_case.json").read_text())
-    layers = tuple(Layer(str(L["id"]), L["thickness_m"], conductivity=L["lambda"], density=L["rho"],
-                         specific_heat=L["c"]) for L in d["layers"])
+    layers = tuple(
+        Layer(str(L["id"]), L["thickness_m"], conductivity=L["lambda"], density=L["rho"], specific_heat=L["c"])
+        for L in d["layers"]
+    )
     probes = tuple(Probe(p["name"], p["depth_m"]) for p in d["probes"] if p["name"] in ("T3A", "T2A", "T1A"))
     return Wall(layers, probes)
 
 
-def make_input(wall: Wall, ue, ui, dt: float, *, out_every: int = 1, scheme="cn", C=2.0, rule="wallcal",
-               ext="surface_temperature", intr="surface_temperature", h_e=None, h_i=None,
-               probes=None, faces=("exterior", "interior"), **options) -> SimulationInput:
+def make_input(
+    wall: Wall,
+    ue,
+    ui,
+    dt: float,
+    *,
+    out_every: int = 1,
+    scheme="cn",
+    C=2.0,
+    rule="wallcal",
+    ext="surface_temperature",
+    intr="surface_temperature",
+    h_e=None,
+    h_i=None,
+    probes=None,
+    faces=("exterior", "interior"),
+    **options,
+) -> SimulationInput:
     ue = np.asarray(ue, dtype=float)
     ui = np.asarray(ui, dtype=float)
     n = len(ue) - 1
     pos = np.arange(0, n + 1, out_every, dtype=float)
     return SimulationInput(
-        wall=wall, t0=pd.Timestamp("2025-01-01"), time_step=dt,
-        exterior=BoundaryInput(ext, ue, h_e), interior=BoundaryInput(intr, ui, h_i),
-        output_positions=pos, probes=tuple(probes or [p.name for p in wall.probes]), flux_faces=faces,
-        grid_constant=C, node_rule=rule, scheme=scheme, options=dict(options),
+        wall=wall,
+        t0=pd.Timestamp("2025-01-01"),
+        time_step=dt,
+        exterior=BoundaryInput(ext, ue, h_e),
+        interior=BoundaryInput(intr, ui, h_i),
+        output_positions=pos,
+        probes=tuple(probes or [p.name for p in wall.probes]),
+        flux_faces=faces,
+        grid_constant=C,
+        node_rule=rule,
+        scheme=scheme,
+        options=dict(options),
     )
 
 

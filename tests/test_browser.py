@@ -17,8 +17,10 @@ DRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"
 
 pytestmark = [
     pytest.mark.browser,
-    pytest.mark.skipif(not (Path(CHROMIUM).exists() and Path(DRIVER).exists()),
-                       reason="needs Debian's chromium and chromium-driver (apt-get install chromium chromium-driver)"),
+    pytest.mark.skipif(
+        not (Path(CHROMIUM).exists() and Path(DRIVER).exists()),
+        reason="needs Debian's chromium and chromium-driver (apt-get install chromium chromium-driver)",
+    ),
 ]
 
 
@@ -29,9 +31,18 @@ def driver():
 
     opts = webdriver.ChromeOptions()
     opts.binary_location = CHROMIUM
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-              "--disable-background-networking", "--disable-component-update", "--disable-sync",
-              "--disable-dev-shm-usage", "--window-size=1400,1000"):
+    for a in (
+        "--headless=new",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--disable-dev-shm-usage",
+        "--window-size=1400,1000",
+    ):
         opts.add_argument(a)
     opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     d = webdriver.Chrome(service=Service(executable_path=DRIVER), options=opts)
@@ -90,8 +101,9 @@ def server(tmp_path_factory):
     shutil.copy(EXAMPLE.parent / "true_wall.toml", d)
     shutil.copy(EXAMPLE, d / "study.toml")
     box = {}
-    th = threading.Thread(target=serve, args=(d / "study.toml",),
-                          kwargs={"port": 0, "ready": lambda h: box.update(httpd=h)}, daemon=True)
+    th = threading.Thread(
+        target=serve, args=(d / "study.toml",), kwargs={"port": 0, "ready": lambda h: box.update(httpd=h)}, daemon=True
+    )
     th.start()
     wait_for(lambda: "httpd" in box, 60, "the server")
     httpd = box["httpd"]
@@ -103,8 +115,9 @@ def server(tmp_path_factory):
 def test_live_page_reacts_to_a_conductivity_change(driver, server):
     url, d = server
     driver.get(url)
-    wait_for(lambda: driver.execute_script("return Number(document.body.dataset.version || 0)") >= 1, 30,
-             "the first drawing")
+    wait_for(
+        lambda: driver.execute_script("return Number(document.body.dataset.version || 0)") >= 1, 30, "the first drawing"
+    )
     rmse0 = driver.find_element("css selector", "#row-T3A .rmse").text
     plot0 = driver.execute_script("return document.getElementById('plot-T3A').toDataURL()")
     v0 = driver.execute_script("return Number(document.body.dataset.version)")

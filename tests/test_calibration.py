@@ -45,20 +45,23 @@ def test_example_space(example_study):
 
 
 def test_space_validation_reports_every_problem(raw):
-    probs = space_problems(raw, {
-        "targets": ["T3A", "T4A"],
-        "parameters": [
-            {"layers": ["3"], "property": "conductivity", "bounds": [0.1, 0.2], "bounds_kind": "absolute"},
-            {"layers": ["3x"], "property": "density", "bounds": [-0.2, 0.2]},              # unknown layer
-            {"layers": ["4"], "property": "conductivity", "bounds": [-0.1, 0.3], "bounds_kind": "absolute"},
-            {"layers": ["5", "5"], "property": "density", "bounds": [-0.2, 0.2]},          # named twice
-            {"layers": ["4", "5"], "property": "specific_heat", "bounds": [-0.2, 0.2]},    # tied, different base
-            {"probe": "T9A", "property": "depth", "bounds": [0.09, 0.11]},                 # unknown probe
-            {"layers": ["3"], "property": "contact_resistance", "bounds": [-0.5, 0.5]},    # relative of 0
-            {"layers": ["9"], "property": "contact_resistance", "bounds": [0, 0.1], "bounds_kind": "absolute"},
-            {"layers": ["6"], "property": "conductivty", "bounds": [-0.2, 0.2]},
-        ],
-    })
+    probs = space_problems(
+        raw,
+        {
+            "targets": ["T3A", "T4A"],
+            "parameters": [
+                {"layers": ["3"], "property": "conductivity", "bounds": [0.1, 0.2], "bounds_kind": "absolute"},
+                {"layers": ["3x"], "property": "density", "bounds": [-0.2, 0.2]},  # unknown layer
+                {"layers": ["4"], "property": "conductivity", "bounds": [-0.1, 0.3], "bounds_kind": "absolute"},
+                {"layers": ["5", "5"], "property": "density", "bounds": [-0.2, 0.2]},  # named twice
+                {"layers": ["4", "5"], "property": "specific_heat", "bounds": [-0.2, 0.2]},  # tied, different base
+                {"probe": "T9A", "property": "depth", "bounds": [0.09, 0.11]},  # unknown probe
+                {"layers": ["3"], "property": "contact_resistance", "bounds": [-0.5, 0.5]},  # relative of 0
+                {"layers": ["9"], "property": "contact_resistance", "bounds": [0, 0.1], "bounds_kind": "absolute"},
+                {"layers": ["6"], "property": "conductivty", "bounds": [-0.2, 0.2]},
+            ],
+        },
+    )
     text = "\n".join(probs)
     assert "calibration.targets[1]: 'T4A' is not a sensor" in text
     assert "the base value 0.04 of conductivity[3] is outside the bounds [0.1, 0.2]" in text
@@ -74,15 +77,16 @@ def test_space_validation_reports_every_problem(raw):
 
 def test_parameters_map_to_properties(example_study):
     r = copy.deepcopy(example_study.calibration)
-    r["parameters"] = r["parameters"] + [{"probe": "T3A", "property": "depth", "bounds": [-0.005, 0.005],
-                                          "bounds_kind": "absolute"}]
+    r["parameters"] = r["parameters"] + [
+        {"probe": "T3A", "property": "depth", "bounds": [-0.005, 0.005], "bounds_kind": "absolute"}
+    ]
     with pytest.raises(StudyError, match="base value 0.1 of depth"):
         parse_space(example_study, r)
     r["parameters"][-1]["bounds"] = [0.095, 0.105]
     sp = parse_space(example_study, r)
     x = sp.base.copy()
-    x[6] = 0.04   # conductivity[5,8]
-    x[8] = 1200   # specific_heat[5,8]
+    x[6] = 0.04  # conductivity[5,8]
+    x[8] = 1200  # specific_heat[5,8]
     x[-1] = 0.098
     props, depths = sp.properties(example_study.wall, x[None])
     assert props.conductivity[0, 2] == props.conductivity[0, 5] == 0.04
@@ -212,11 +216,14 @@ def test_resume_without_checkpoint_is_a_clear_error(example_study, tmp_path):
         calibrate(example_study, settings=QUICK, progress=False, out_dir=tmp_path / "x", resume=True)
 
 
-@pytest.mark.parametrize("algorithm,settings", [
-    ("nelder-mead", {"maxfev": 150}),
-    ("differential-evolution", {"maxiter": 3, "popsize": 2}),
-    ("least-squares", {"max_nfev": 5}),
-])
+@pytest.mark.parametrize(
+    "algorithm,settings",
+    [
+        ("nelder-mead", {"maxfev": 150}),
+        ("differential-evolution", {"maxiter": 3, "popsize": 2}),
+        ("least-squares", {"max_nfev": 5}),
+    ],
+)
 def test_library_algorithms_improve_the_base_case(example_study, algorithm, settings):
     res = calibrate(example_study, algorithm=algorithm, settings=settings, progress=False)
     assert res.f_opt < res.f_base
@@ -236,9 +243,27 @@ def test_unknown_setting_is_rejected(example_study):
 
 def test_convert_conductivity_manual_route(tmp_path, capsys):
     out = tmp_path / "wall.toml"
-    assert main(["convert-conductivity", str(EXAMPLE), "--coefficient", "3=0.0046", "--coefficient", "5=0.0046",
-                 "--coefficient", "7=0.0046", "--coefficient", "8=0.0046", "--layers", "3,5,7,8",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "convert-conductivity",
+                str(EXAMPLE),
+                "--coefficient",
+                "3=0.0046",
+                "--coefficient",
+                "5=0.0046",
+                "--coefficient",
+                "7=0.0046",
+                "--coefficient",
+                "8=0.0046",
+                "--layers",
+                "3,5,7,8",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     w = load_wall(out)
     # the layers' mean measured temperatures are about 24-26 degC: ISO 10456 gives +6..7 % from 10 degC
     for lid, lam0 in (("3", 0.040), ("5", 0.035)):
@@ -249,8 +274,21 @@ def test_convert_conductivity_manual_route(tmp_path, capsys):
 
 
 def test_crosscheck(tmp_path, capsys):
-    assert main(["crosscheck", str(EXAMPLE), str(EXAMPLE.parent / "true_wall.toml"), str(EXAMPLE),
-                 "--engines", "fd-cn,fd-implicit", "--out", str(tmp_path / "cc")]) == 0
+    assert (
+        main(
+            [
+                "crosscheck",
+                str(EXAMPLE),
+                str(EXAMPLE.parent / "true_wall.toml"),
+                str(EXAMPLE),
+                "--engines",
+                "fd-cn,fd-implicit",
+                "--out",
+                str(tmp_path / "cc"),
+            ]
+        )
+        == 0
+    )
     df = pd.read_csv(tmp_path / "cc" / "crosscheck.csv")
     assert len(df) == 4 and {"rmse_T3A", "rmse_T2A", "rmse_T1A"} <= set(df.columns)
     t = df[(df.wall == "true_wall") & (df.engine == "fd-cn")].iloc[0]

@@ -20,8 +20,20 @@ def test_simulate_prints_tables_and_writes_files(tmp_path, capsys):
     assert list(sim.columns) == ["timestamp", "T3A", "T2A", "T1A", "qe", "qi"]
     assert len(sim) == 2305
     met = pd.read_csv(out / "metrics.csv")
-    assert list(met.columns) == ["signal", "n", "rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14",
-                                 "mae", "max_abs_error", "accuracy", "within_accuracy"]
+    assert list(met.columns) == [
+        "signal",
+        "n",
+        "rmse",
+        "rn_rmse",
+        "cv_rmse_eff",
+        "mbe",
+        "nmbe",
+        "cv_rmse_g14",
+        "mae",
+        "max_abs_error",
+        "accuracy",
+        "within_accuracy",
+    ]
     rmse = met.set_index("signal")["rmse"]
     # base case vs the synthetic measurements (EnergyPlus itself gives 0.524 / 0.253 / 0.388)
     assert rmse["T3A"] == pytest.approx(0.52, abs=0.01)
@@ -32,8 +44,9 @@ def test_simulate_prints_tables_and_writes_files(tmp_path, capsys):
 
 
 def test_options_override_the_study(tmp_path, capsys):
-    assert main(["simulate", str(EXAMPLE), "--engine", "fd-implicit", "--time-step", "300",
-                 "--grid-constant", "3"]) == 0
+    assert (
+        main(["simulate", str(EXAMPLE), "--engine", "fd-implicit", "--time-step", "300", "--grid-constant", "3"]) == 0
+    )
     text = capsys.readouterr().out
     assert "engine fd-implicit, dt = 300 s, C = 3" in text
 

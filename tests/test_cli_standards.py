@@ -44,12 +44,12 @@ def test_wall_on_example_study(capsys):
 def test_wall_options_change_the_figures(capsys, tmp_path):
     wall_file = tmp_path / "wall.toml"
     wall_file.write_text(
-        "[wall]\nname = \"with gap\"\n"
-        "[[wall.layers]]\nid = \"1\"\nmaterial = \"brick\"\nthickness = 0.1\nconductivity = 0.8\n"
+        '[wall]\nname = "with gap"\n'
+        '[[wall.layers]]\nid = "1"\nmaterial = "brick"\nthickness = 0.1\nconductivity = 0.8\n'
         "density = 1800\nspecific_heat = 840\n"
-        "[[wall.layers]]\nid = \"2\"\nmaterial = \"gap\"\nthickness = 0.05\nconductivity = 0.3\n"
+        '[[wall.layers]]\nid = "2"\nmaterial = "gap"\nthickness = 0.05\nconductivity = 0.3\n'
         "density = 1.2\nspecific_heat = 1000\n"
-        "[[wall.layers]]\nid = \"3\"\nmaterial = \"wool\"\nthickness = 0.1\nconductivity = 0.04\n"
+        '[[wall.layers]]\nid = "3"\nmaterial = "wool"\nthickness = 0.1\nconductivity = 0.04\n'
         "density = 60\nspecific_heat = 1030\n"
     )
     assert main(["wall", str(wall_file), "--air-layer", "2=unventilated", "--period-hours", "12"]) == 0
@@ -87,8 +87,13 @@ def test_iso9869_example_names_the_failing_criteria(capsys):
     # this heavy (65 kJ/(m2K) > 20) wall changes by a third of the heat that crossed it (storage fails).
     # ISO 9869-1 asks for a steady, mostly one-signed temperature difference (heating season).
     assert "verdict: not applicable: fails last_24h, first_last_two_thirds, storage" in out
-    for name, result in (("duration", "pass"), ("last_24h", "FAIL"), ("first_last_two_thirds", "FAIL"),
-                         ("storage", "FAIL"), ("whole_days", "pass")):
+    for name, result in (
+        ("duration", "pass"),
+        ("last_24h", "FAIL"),
+        ("first_last_two_thirds", "FAIL"),
+        ("storage", "FAIL"),
+        ("whole_days", "pass"),
+    ):
         assert re.search(rf"^\s*{name}\s+{result}\b", out, re.M), (name, out)
     assert "element: heavy" in out
     # the period 2025-05-30 .. 2025-06-07, end excluded: 8 days of 5-min readings
@@ -116,7 +121,12 @@ def test_iso9869_out_writes_three_files(capsys, tmp_path):
     assert verdict["applicable"] is False
     assert verdict["failing"] == ["last_24h", "first_last_two_thirds", "storage"]
     assert {c["name"] for c in verdict["criteria"]} == {
-        "duration", "last_24h", "first_last_two_thirds", "storage", "whole_days"}
+        "duration",
+        "last_24h",
+        "first_last_two_thirds",
+        "storage",
+        "whole_days",
+    }
     csv = (out_dir / "iso9869.csv").read_text().splitlines()
     assert csv[0].split(",") == ["timestamp", "elapsed_h", "q_W_m2", "t_si_C", "t_se_C", "r_running_m2K_W"]
     assert len(csv) == 1 + 2304
@@ -142,16 +152,20 @@ def _study_copy(tmp_path, edit):
 
 def test_iso9869_no_flux_sensor_at_face(capsys, tmp_path):
     # drop the interior heat-flux sensor (the last [[sensors]] table)
-    path = _study_copy(tmp_path, lambda t: t[: t.rindex("[[sensors]]")] + t[t.index("[period]"):])
+    path = _study_copy(tmp_path, lambda t: t[: t.rindex("[[sensors]]")] + t[t.index("[period]") :])
     assert main(["iso9869", str(path), "--face", "interior"]) == 2
     err = capsys.readouterr().err.strip()
     assert "no heat_flux sensor at the interior face" in err and "qe (exterior)" in err
 
 
 def test_iso9869_needs_surface_temperatures(capsys, tmp_path):
-    path = _study_copy(tmp_path, lambda t: t.replace(
-        '[boundary.interior]\ntype = "surface_temperature"',
-        '[boundary.interior]\ntype = "air_temperature"\nsurface_coefficient = 7.7'))
+    path = _study_copy(
+        tmp_path,
+        lambda t: t.replace(
+            '[boundary.interior]\ntype = "surface_temperature"',
+            '[boundary.interior]\ntype = "air_temperature"\nsurface_coefficient = 7.7',
+        ),
+    )
     assert main(["iso9869", str(path)]) == 2
     err = capsys.readouterr().err
     assert "surface temperatures" in err and "boundary.interior.type is 'air_temperature'" in err

@@ -9,8 +9,17 @@ from wallcal import study
 def test_every_study_key_is_documented():
     doc = (REPO / "docs" / "study-file.md").read_text()
     documented = set(re.findall(r"`([a-z_]+)`", doc))
-    tuples = [study.STUDY_KEYS, study.WALL_KEYS, study.LAYER_KEYS, study.PROBE_KEYS, study.DATA_KEYS,
-              study.BOUNDARY_KEYS, study.SENSOR_KEYS, study.PERIOD_KEYS, study.SIMULATION_KEYS]
+    tuples = [
+        study.STUDY_KEYS,
+        study.WALL_KEYS,
+        study.LAYER_KEYS,
+        study.PROBE_KEYS,
+        study.DATA_KEYS,
+        study.BOUNDARY_KEYS,
+        study.SENSOR_KEYS,
+        study.PERIOD_KEYS,
+        study.SIMULATION_KEYS,
+    ]
     missing = sorted({k for t in tuples for k in t} - documented)
     assert not missing, f"undocumented study keys: {missing}"
 

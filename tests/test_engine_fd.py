@@ -39,21 +39,36 @@ def test_steady_state_with_contact_and_massless_layers():
         Layer("air", 0.02, thermal_resistance=0.17),
         Layer("b", 0.1, conductivity=0.04, density=30.0, specific_heat=1400.0),
     )
-    wall = Wall(layers, (Probe("in_a", 0.05), Probe("face_a", 0.1, side="exterior"),
-                         Probe("face_a_in", 0.1, side="interior"), Probe("mid_air", 0.11), Probe("mid_b", 0.17)))
+    wall = Wall(
+        layers,
+        (
+            Probe("in_a", 0.05),
+            Probe("face_a", 0.1, side="exterior"),
+            Probe("face_a_in", 0.1, side="interior"),
+            Probe("mid_air", 0.11),
+            Probe("mid_b", 0.17),
+        ),
+    )
     inp = make_input(wall, np.full(11, 0.0), np.full(11, 20.0), 300.0)
     out = run(inp)
     r_tot = 0.2 + 0.2 + 0.17 + 2.5
     q = 20.0 / r_tot
-    expect = {"in_a": q * 0.1, "face_a": q * 0.2, "face_a_in": q * 0.4, "mid_air": q * (0.4 + 0.085),
-              "mid_b": q * (0.57 + 0.05 / 0.04)}
+    expect = {
+        "in_a": q * 0.1,
+        "face_a": q * 0.2,
+        "face_a_in": q * 0.4,
+        "mid_air": q * (0.4 + 0.085),
+        "mid_b": q * (0.57 + 0.05 / 0.04),
+    }
     for k, v in expect.items():
         np.testing.assert_allclose(out.temperatures[k], v, atol=1e-10, err_msg=k)
     np.testing.assert_allclose(out.fluxes["interior"], -q, rtol=1e-10)  # heat flows outwards
 
 
-@pytest.mark.parametrize("ext,intr", [("air_temperature", "air_temperature"), ("heat_flux", "air_temperature"),
-                                      ("surface_temperature", "heat_flux")])
+@pytest.mark.parametrize(
+    "ext,intr",
+    [("air_temperature", "air_temperature"), ("heat_flux", "air_temperature"), ("surface_temperature", "heat_flux")],
+)
 def test_steady_state_other_boundaries(ext, intr):
     wall = three_layer_wall()
     h_e, h_i = 25.0, 7.7
@@ -94,8 +109,9 @@ def periodic_case(dt, C, scheme, days=6, period=86400.0, rule="wallcal"):
     R = wall.resistance
     last = t >= (days - 1) * 86400
     errs = {}
-    for p, a, frac in zip(wall.probes, amps, wall.steady_profile(0.0, 1.0, [p.depth for p in wall.probes]),
-                          strict=True):
+    for p, a, frac in zip(
+        wall.probes, amps, wall.steady_profile(0.0, 1.0, [p.depth for p in wall.probes]), strict=True
+    ):
         exact = 5.0 + 15.0 * frac + np.real(a * np.exp(1j * w * t))
         errs[p.name] = np.abs(out.temperatures[p.name] - exact)[last].max()
     q_mean = (5.0 - 20.0) / R  # towards the interior
@@ -152,8 +168,15 @@ def test_observed_order_in_time(scheme, order):
 
 def test_observed_order_lambda_T_cn():
     layers = (
-        Layer("wool", 0.12, conductivity=0.04, density=60.0, specific_heat=1030.0,
-              conductivity_temperature_coefficient=0.02, reference_temperature=10.0),
+        Layer(
+            "wool",
+            0.12,
+            conductivity=0.04,
+            density=60.0,
+            specific_heat=1030.0,
+            conductivity_temperature_coefficient=0.02,
+            reference_temperature=10.0,
+        ),
         Layer("brick", 0.10, conductivity=0.8, density=1800.0, specific_heat=840.0),
     )
     wall = Wall(layers, (Probe("a", 0.06), Probe("b", 0.17)))
@@ -166,9 +189,20 @@ def test_observed_order_lambda_T_cn():
 # ---------------------------------------------------------------------------- lambda(T)
 def test_lambda_T_steady_state_matches_kirchhoff_solution():
     f, lam0, tr, L = 0.02, 0.04, 10.0, 0.1
-    wall = Wall((Layer("w", L, conductivity=lam0, density=50.0, specific_heat=1000.0,
-                       conductivity_temperature_coefficient=f, reference_temperature=tr),),
-                tuple(Probe(f"x{i}", x) for i, x in enumerate([0.025, 0.05, 0.075])))
+    wall = Wall(
+        (
+            Layer(
+                "w",
+                L,
+                conductivity=lam0,
+                density=50.0,
+                specific_heat=1000.0,
+                conductivity_temperature_coefficient=f,
+                reference_temperature=tr,
+            ),
+        ),
+        tuple(Probe(f"x{i}", x) for i, x in enumerate([0.025, 0.05, 0.075])),
+    )
     t1, t2 = -10.0, 40.0
     # C such that dx = 2.5 mm exactly (40 intervals): the probes sit on nodes
     C = 0.0025**2 / (lam0 / 50e3 * 60.0)
@@ -194,8 +228,19 @@ def test_lambda_table_equals_exponential_when_dense():
     mk = [dict(conductivity_temperature_coefficient=f), dict(conductivity_table=table, conductivity=None)]
     res = []
     for kw in mk:
-        wall = Wall((Layer("w", 0.1, density=50.0, specific_heat=1000.0, reference_temperature=10.0,
-                           **({"conductivity": 0.04} | kw)),), (Probe("m", 0.05),))
+        wall = Wall(
+            (
+                Layer(
+                    "w",
+                    0.1,
+                    density=50.0,
+                    specific_heat=1000.0,
+                    reference_temperature=10.0,
+                    **({"conductivity": 0.04} | kw),
+                ),
+            ),
+            (Probe("m", 0.05),),
+        )
         t = np.arange(1441) * 60.0
         inp = make_input(wall, 10 + 20 * np.sin(2 * np.pi * t / 86400), np.full(1441, 20.0), 60.0)
         res.append(run(inp).temperatures["m"])
@@ -204,8 +249,14 @@ def test_lambda_table_equals_exponential_when_dense():
 
 # ---------------------------------------------------------------------------- energy balance
 @pytest.mark.parametrize("scheme", ["cn", "implicit"])
-@pytest.mark.parametrize("ext,intr", [("surface_temperature", "surface_temperature"),
-                                      ("air_temperature", "air_temperature"), ("heat_flux", "air_temperature")])
+@pytest.mark.parametrize(
+    "ext,intr",
+    [
+        ("surface_temperature", "surface_temperature"),
+        ("air_temperature", "air_temperature"),
+        ("heat_flux", "air_temperature"),
+    ],
+)
 def test_energy_balance_closes(scheme, ext, intr):
     wall = three_layer_wall()
     wall = wall.replace_layer("wool", conductivity_temperature_coefficient=0.005)
@@ -253,8 +304,10 @@ def test_cn_does_not_ring_after_a_step_change(C):
 def test_cn_does_not_ring_with_a_thin_metal_sheet():
     """A 1 mm steel sheet on the exterior face is far too stiff for CN at dt = 600 s; the stiff
     link is made implicit, so the sheet's inner face follows the step without oscillating."""
-    layers = (Layer("steel", 0.001, conductivity=50.0, density=7800.0, specific_heat=450.0),
-              Layer("wool", 0.1, conductivity=0.04, density=60.0, specific_heat=1030.0))
+    layers = (
+        Layer("steel", 0.001, conductivity=50.0, density=7800.0, specific_heat=450.0),
+        Layer("wool", 0.1, conductivity=0.04, density=60.0, specific_heat=1030.0),
+    )
     wall = Wall(layers, (Probe("sheet_in", 0.001), Probe("wool", 0.01)))
     n = 200
     ue = np.where(np.arange(n + 1) >= 5, 20.0, 0.0)
@@ -267,9 +320,15 @@ def test_cn_does_not_ring_with_a_thin_metal_sheet():
 
 # ---------------------------------------------------------------------------- fast path
 @pytest.mark.parametrize("scheme", ["cn", "implicit"])
-@pytest.mark.parametrize("ext,intr", [("surface_temperature", "surface_temperature"),
-                                      ("air_temperature", "air_temperature"), ("heat_flux", "air_temperature"),
-                                      ("surface_temperature", "heat_flux")])
+@pytest.mark.parametrize(
+    "ext,intr",
+    [
+        ("surface_temperature", "surface_temperature"),
+        ("air_temperature", "air_temperature"),
+        ("heat_flux", "air_temperature"),
+        ("surface_temperature", "heat_flux"),
+    ],
+)
 def test_modal_fast_path_equals_general_path(scheme, ext, intr):
     wall = three_layer_wall()
     wall = wall.replace_layer("brick", contact_resistance=0.05)

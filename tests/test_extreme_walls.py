@@ -44,19 +44,25 @@ def _walls():
         # a 0.5 mm steel sheet on the exterior face (cladding): g dt / c far above stiff_limit
         "steel_sheet_0.5mm": _wall([(0.0005, STEEL), (0.10, WOOL), (0.0125, GYPSUM)], (0.0005, 0.03, 0.08, 0.1005)),
         # a 50 um aluminium foil (vapour barrier) between two insulation layers
-        "alu_foil_50um": _wall([(0.05, WOOL), (0.00005, ALU), (0.05, WOOL), (0.0125, GYPSUM)],
-                               (0.025, 0.05, 0.05005, 0.075, 0.10005)),
+        "alu_foil_50um": _wall(
+            [(0.05, WOOL), (0.00005, ALU), (0.05, WOOL), (0.0125, GYPSUM)], (0.025, 0.05, 0.05005, 0.075, 0.10005)
+        ),
         # an air layer given only its resistance, inside the wall (probes inside it interpolate in R)
-        "air_layer_no_mass": _wall([(0.10, BRICK), (0.02, dict(thermal_resistance=0.18)), (0.10, WOOL),
-                                    (0.0125, GYPSUM)], (0.05, 0.11, 0.17, 0.225)),
+        "air_layer_no_mass": _wall(
+            [(0.10, BRICK), (0.02, dict(thermal_resistance=0.18)), (0.10, WOOL), (0.0125, GYPSUM)],
+            (0.05, 0.11, 0.17, 0.225),
+        ),
         # ... and at the exterior face (a node without heat capacity next to the imposed face)
-        "air_layer_at_face": _wall([(0.02, dict(thermal_resistance=0.17)), (0.10, BRICK), (0.10, WOOL)],
-                                   (0.01, 0.02, 0.07, 0.17)),
+        "air_layer_at_face": _wall(
+            [(0.02, dict(thermal_resistance=0.17)), (0.10, BRICK), (0.10, WOOL)], (0.01, 0.02, 0.07, 0.17)
+        ),
         "24_layers": _wall(many, (0.1 * tot, 0.37 * tot, 0.62 * tot, 0.9 * tot)),
         "concrete_1m": _wall([(1.0, CONCRETE)], (0.1, 0.5, 0.9)),
         # 0.003 .. 380 W/(m K): 5.1 decades, with 1 and 2 mm metal layers between massive and light ones
-        "five_decades": _wall([(0.02, VIP), (0.001, COPPER), (0.1, CONCRETE), (0.002, STEEL), (0.05, WOOL),
-                               (0.001, ALU), (0.02, WOOD)], (0.02, 0.021, 0.07, 0.123, 0.15, 0.174, 0.184)),
+        "five_decades": _wall(
+            [(0.02, VIP), (0.001, COPPER), (0.1, CONCRETE), (0.002, STEEL), (0.05, WOOL), (0.001, ALU), (0.02, WOOD)],
+            (0.02, 0.021, 0.07, 0.123, 0.15, 0.174, 0.184),
+        ),
     }
 
 
@@ -88,8 +94,10 @@ def _periodic(wall, dt, scheme="cn"):
     depths = [p.depth for p in wall.probes]
     amps, qe, qi = periodic_solution(wall, PERIOD, amp_e, amp_i, depths)
     frac = wall.steady_profile(0.0, 1.0, depths)
-    t_err = max(np.abs(out.temperatures[p.name] - (5.0 + 15.0 * f + np.real(a * np.exp(1j * w * tt))))[last].max()
-                for p, a, f in zip(wall.probes, amps, frac, strict=True))
+    t_err = max(
+        np.abs(out.temperatures[p.name] - (5.0 + 15.0 * f + np.real(a * np.exp(1j * w * tt))))[last].max()
+        for p, a, f in zip(wall.probes, amps, frac, strict=True)
+    )
     q_mean = (5.0 - 20.0) / wall.resistance
     qe_err = np.abs(out.fluxes["exterior"] - (q_mean + np.real(qe * np.exp(1j * w * tt))))[last].max() / abs(qe)
     qi_err = np.abs(out.fluxes["interior"] - (q_mean + np.real(qi * np.exp(1j * w * tt))))[last].max() / abs(qi)
@@ -120,8 +128,9 @@ def test_energy_balance_closes_on_the_general_path(name, dt, scheme):
     t = np.arange(int(2 * PERIOD / dt) + 1) * dt
     ue = 5 + 10 * np.sin(2 * np.pi * t / PERIOD) + np.where(t > PERIOD / 3, 8.0, 0.0)
     ui = 20 + np.sin(2 * np.pi * t / PERIOD)
-    out = FDEngine(scheme).run(make_input(wall, ue, ui, dt, scheme=scheme, out_every=max(1, int(3600 / dt))),
-                               path="general")
+    out = FDEngine(scheme).run(
+        make_input(wall, ue, ui, dt, scheme=scheme, out_every=max(1, int(3600 / dt))), path="general"
+    )
     assert out.info["path"] == "general"
     # stored-energy change = net energy in, to round-off (the scheme conserves energy exactly per step).
     # Round-off: 1e-9 of the throughput, plus, per step, eps * g dt |T| of the stiffest link (a 50 um foil has
@@ -134,11 +143,18 @@ def test_energy_balance_closes_on_the_general_path(name, dt, scheme):
 
 
 RINGS_AT_DEFAULT = pytest.mark.xfail(
-    strict=True, reason="engine bug: with the default stiff_limit = 10, a wool link next to the metal layer has "
+    strict=True,
+    reason="engine bug: with the default stiff_limit = 10, a wool link next to the metal layer has "
     "g dt (1/c_a + 1/c_b) = 3..10 at dt = 1 h, so CN's amplification (1 - l/2)/(1 + l/2) < 0 and the probe "
-    "overshoots by 0.26-0.30 K after a 20 K step; stiff_limit = 2 removes it (see the next test)")
-RING_CASES = [pytest.param(name, dt, marks=RINGS_AT_DEFAULT if (dt == 3600.0 and name in (
-    "steel_sheet_0.5mm", "alu_foil_50um")) else ()) for name in sorted(WALLS) for dt in DTS]
+    "overshoots by 0.26-0.30 K after a 20 K step; stiff_limit = 2 removes it (see the next test)",
+)
+RING_CASES = [
+    pytest.param(
+        name, dt, marks=RINGS_AT_DEFAULT if (dt == 3600.0 and name in ("steel_sheet_0.5mm", "alu_foil_50um")) else ()
+    )
+    for name in sorted(WALLS)
+    for dt in DTS
+]
 
 
 def _step_response(wall, dt, **options):

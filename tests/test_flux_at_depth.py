@@ -17,21 +17,33 @@ def study(tmp_path, depth=0.06, extra=None):
     t = pd.date_range("2025-01-01", "2025-01-09", freq="300s")
     s = (t - t[0]).total_seconds().to_numpy()
     w = 2 * np.pi / PERIOD
-    df = pd.DataFrame({"timestamp": t.strftime("%Y-%m-%dT%H:%M:%S"),
-                       "Te": 5 + 10 * np.cos(w * s), "Ti": np.full(len(s), 20.0), "q": np.zeros(len(s))})
+    df = pd.DataFrame(
+        {
+            "timestamp": t.strftime("%Y-%m-%dT%H:%M:%S"),
+            "Te": 5 + 10 * np.cos(w * s),
+            "Ti": np.full(len(s), 20.0),
+            "q": np.zeros(len(s)),
+        }
+    )
     df.to_csv(tmp_path / "d.csv", index=False)
     raw = {
-        "wall": {"layers": [
-            {"id": "brick", "thickness": 0.1, "conductivity": 0.8, "density": 1800.0, "specific_heat": 840.0},
-            {"id": "wool", "thickness": 0.1, "conductivity": 0.04, "density": 60.0, "specific_heat": 1030.0}],
-            "probes": [{"name": "P", "depth": 0.05}]},
+        "wall": {
+            "layers": [
+                {"id": "brick", "thickness": 0.1, "conductivity": 0.8, "density": 1800.0, "specific_heat": 840.0},
+                {"id": "wool", "thickness": 0.1, "conductivity": 0.04, "density": 60.0, "specific_heat": 1030.0},
+            ],
+            "probes": [{"name": "P", "depth": 0.05}],
+        },
         "data": {"file": "d.csv"},
-        "boundary": {"exterior": {"type": "surface_temperature", "column": "Te"},
-                     "interior": {"type": "surface_temperature", "column": "Ti"}},
-        "sensors": [{"name": "P", "column": "Te"},
-                    {"name": "qx", "column": "q", "quantity": "heat_flux", "depth": depth, **(extra or {})}],
-        "period": {"warmup_start": "2025-01-01T00:00:00", "start": "2025-01-07T00:00:00",
-                   "end": "2025-01-08T00:00:00"},
+        "boundary": {
+            "exterior": {"type": "surface_temperature", "column": "Te"},
+            "interior": {"type": "surface_temperature", "column": "Ti"},
+        },
+        "sensors": [
+            {"name": "P", "column": "Te"},
+            {"name": "qx", "column": "q", "quantity": "heat_flux", "depth": depth, **(extra or {})},
+        ],
+        "period": {"warmup_start": "2025-01-01T00:00:00", "start": "2025-01-07T00:00:00", "end": "2025-01-08T00:00:00"},
         "simulation": {"time_step": 60, "grid_constant": 1.0},
     }
     return parse_study(raw, base_dir=tmp_path)
@@ -57,8 +69,10 @@ def test_flux_at_depth_in_calibration_objective(tmp_path):
 
     st = study(tmp_path, 0.12)
     raw = dict(st.raw)
-    raw["calibration"] = {"targets": ["P", "qx"], "parameters": [
-        {"layers": ["wool"], "property": "conductivity", "bounds": [-0.2, 0.2]}]}
+    raw["calibration"] = {
+        "targets": ["P", "qx"],
+        "parameters": [{"layers": ["wool"], "property": "conductivity", "bounds": [-0.2, 0.2]}],
+    }
     st = parse_study(raw, base_dir=tmp_path)
     space = parse_space(st)
     prep = prepare(st)

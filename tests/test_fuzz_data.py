@@ -33,16 +33,24 @@ COLUMNS = ["TSe", "T3A", "T2A", "T1A", "TSi", "qe", "qi"]
 BOUNDARY = {"TSe", "TSi"}
 N = 2 * 144 + 1  # two days of 10-minute samples
 START = dt.datetime(2025, 5, 29)
-FUZZ = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                        HealthCheck.function_scoped_fixture])
+FUZZ = settings(
+    max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+)
 
 
 def _clean_rows():
     t = np.arange(N) * 600.0
     rng = np.random.default_rng(0)
     day = np.sin(2 * np.pi * t / 86400)
-    vals = {"TSe": 15 + 8 * day, "T3A": 20 + 4 * day, "T2A": 22 + 2 * day, "T1A": 23 + day, "TSi": 23 + 0.5 * day,
-            "qe": -5 + 10 * day, "qi": 2 + day}
+    vals = {
+        "TSe": 15 + 8 * day,
+        "T3A": 20 + 4 * day,
+        "T2A": 22 + 2 * day,
+        "T1A": 23 + day,
+        "TSi": 23 + 0.5 * day,
+        "qe": -5 + 10 * day,
+        "qi": 2 + day,
+    }
     rows = []
     for k in range(N):
         stamp = (START + dt.timedelta(seconds=float(t[k]))).isoformat()
@@ -56,8 +64,11 @@ ROWS = _clean_rows()
 def _study(path, tmp, **data_keys):
     raw = copy.deepcopy(RAW)
     raw["data"] = {"file": str(path), "max_gap": 7200, **data_keys}
-    raw["period"] = {"warmup_start": START, "start": START + dt.timedelta(days=1),
-                     "end": START + dt.timedelta(days=1, hours=12)}
+    raw["period"] = {
+        "warmup_start": START,
+        "start": START + dt.timedelta(days=1),
+        "end": START + dt.timedelta(days=1, hours=12),
+    }
     return parse_study(raw, base_dir=tmp)
 
 
@@ -81,10 +92,32 @@ def corrupted_file(draw):
     sep = draw(st.sampled_from([",", ";", "\t"]))
     header = ["timestamp"] + COLUMNS
     rows = copy.deepcopy(ROWS)
-    kind = draw(st.sampled_from(["non_numeric", "infinite", "huge", "empty_cell", "bool_column", "missing_column",
-                                 "extra_column", "duplicate_time", "unsorted_time", "mixed_tz", "aware_no_offset",
-                                 "bad_time", "empty_time", "non_utf8_cell", "non_utf8_header", "empty_file",
-                                 "header_only", "ragged_row", "long_gap", "valid"]))
+    kind = draw(
+        st.sampled_from(
+            [
+                "non_numeric",
+                "infinite",
+                "huge",
+                "empty_cell",
+                "bool_column",
+                "missing_column",
+                "extra_column",
+                "duplicate_time",
+                "unsorted_time",
+                "mixed_tz",
+                "aware_no_offset",
+                "bad_time",
+                "empty_time",
+                "non_utf8_cell",
+                "non_utf8_header",
+                "empty_file",
+                "header_only",
+                "ragged_row",
+                "long_gap",
+                "valid",
+            ]
+        )
+    )
     r = draw(st.integers(1, N - 2))
     c = draw(st.integers(0, len(COLUMNS) - 1))
     col = COLUMNS[c]
@@ -107,8 +140,8 @@ def corrupted_file(draw):
             row[c + 1] = draw(st.sampled_from(["true", "false", "True"]))
         return kind, col, _encode(header, rows, sep), True
     if kind == "missing_column":
-        header = header[:c + 1] + header[c + 2:]
-        rows = [row[:c + 1] + row[c + 2:] for row in rows]
+        header = header[: c + 1] + header[c + 2 :]
+        rows = [row[: c + 1] + row[c + 2 :] for row in rows]
         return kind, col, _encode(header, rows, sep), True
     if kind == "extra_column":
         header = header + ["comment"]
@@ -130,8 +163,9 @@ def corrupted_file(draw):
             row[0] += "+02:00"
         return kind, "timestamp", _encode(header, rows, sep), True
     if kind == "bad_time":
-        rows[r][0] = draw(st.sampled_from(["2025-05-32T00:00:00", "yesterday", "30/05/2025 10:00", "12345",
-                                           "2025-05-29T25:00:00"]))
+        rows[r][0] = draw(
+            st.sampled_from(["2025-05-32T00:00:00", "yesterday", "30/05/2025 10:00", "12345", "2025-05-29T25:00:00"])
+        )
         return kind, "timestamp", _encode(header, rows, sep), True
     if kind == "empty_time":
         rows[r][0] = ""
@@ -139,7 +173,7 @@ def corrupted_file(draw):
     if kind == "non_utf8_cell":
         data = _encode(header, rows, sep)
         at = data.index(rows[r][c + 1].encode())
-        return kind, None, data[:at] + b"\xff\xfe" + data[at + 2:], True
+        return kind, None, data[:at] + b"\xff\xfe" + data[at + 2 :], True
     if kind == "non_utf8_header":
         return kind, None, _encode(header, rows, sep).replace(b"T2A", b"T2\xe4", 1), True
     if kind == "empty_file":
@@ -151,7 +185,7 @@ def corrupted_file(draw):
         return kind, None, _encode(header, rows, sep), True
     if kind == "long_gap":  # 3 h without data in the middle of the period (max_gap = 2 h)
         a = 144 + 18
-        del rows[a:a + 18]
+        del rows[a : a + 18]
         return kind, None, _encode(header, rows, sep), True
     return kind, None, _encode(header, rows, sep), False
 
@@ -217,8 +251,12 @@ def test_elapsed_seconds_time_column(tmp_path_factory, secs):
     frame = pd.DataFrame({"t": secs, **{c: np.linspace(10, 20, len(secs)) for c in COLUMNS}})
     frame.to_csv(path, index=False)
     raw = copy.deepcopy(RAW)
-    raw["data"] = {"file": str(path), "time_column": "t", "time_format": "elapsed_seconds",
-                   "start": dt.datetime(2025, 1, 1)}
+    raw["data"] = {
+        "file": str(path),
+        "time_column": "t",
+        "time_format": "elapsed_seconds",
+        "start": dt.datetime(2025, 1, 1),
+    }
     raw["period"] = {"start": dt.datetime(2025, 1, 1), "end": dt.datetime(2025, 1, 1, 1)}
     study = parse_study(raw, base_dir=d)
     m, exc = _load(study)
@@ -227,8 +265,9 @@ def test_elapsed_seconds_time_column(tmp_path_factory, secs):
 
 
 # ---------------------------------------------------------------------------- the CLI on corrupted data
-@pytest.mark.parametrize("kind", ["non_utf8_cell", "duplicate_time", "mixed_tz", "empty_file", "huge",
-                                  "missing_column"])
+@pytest.mark.parametrize(
+    "kind", ["non_utf8_cell", "duplicate_time", "mixed_tz", "empty_file", "huge", "missing_column"]
+)
 def test_cli_data_errors_one_line(kind, tmp_path, capsys):
     import tomli_w
 
@@ -243,8 +282,11 @@ def test_cli_data_errors_one_line(kind, tmp_path, capsys):
     (tmp_path / "data.csv").write_bytes(data)
     raw = copy.deepcopy(RAW)
     raw["data"] = {"file": "data.csv"}
-    raw["period"] = {"warmup_start": START, "start": START + dt.timedelta(days=1),
-                     "end": START + dt.timedelta(days=1, hours=12)}
+    raw["period"] = {
+        "warmup_start": START,
+        "start": START + dt.timedelta(days=1),
+        "end": START + dt.timedelta(days=1, hours=12),
+    }
     (tmp_path / "study.toml").write_text(tomli_w.dumps(raw))
     code = main(["simulate", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err

@@ -53,13 +53,43 @@ def _leaves(node, path=""):
 PATHS = [(p, v) for p, v in _leaves(RAW) if not p.startswith("calibration")]
 LEAVES = [(p, v) for p, v in PATHS if not isinstance(v, (dict, list))]
 # keys that must be there (deleting them is an error at that path)
-REQUIRED = {"wall", "wall.layers", "data", "data.file", "boundary", "boundary.exterior", "boundary.interior",
-            "period", "period.start", "period.end", "sensors"}
-REQUIRED_LEAF_NAMES = {"id", "thickness", "conductivity", "density", "specific_heat", "name", "depth", "type",
-                       "column", "face"}
+REQUIRED = {
+    "wall",
+    "wall.layers",
+    "data",
+    "data.file",
+    "boundary",
+    "boundary.exterior",
+    "boundary.interior",
+    "period",
+    "period.start",
+    "period.end",
+    "sensors",
+}
+REQUIRED_LEAF_NAMES = {
+    "id",
+    "thickness",
+    "conductivity",
+    "density",
+    "specific_heat",
+    "name",
+    "depth",
+    "type",
+    "column",
+    "face",
+}
 # numbers that must be > 0 (zero and negative values are errors)
-POSITIVE = {"thickness", "conductivity", "density", "specific_heat", "accuracy", "accuracy_relative", "max_gap",
-            "time_step", "grid_constant"}
+POSITIVE = {
+    "thickness",
+    "conductivity",
+    "density",
+    "specific_heat",
+    "accuracy",
+    "accuracy_relative",
+    "max_gap",
+    "time_step",
+    "grid_constant",
+}
 
 
 def _split(path):
@@ -104,14 +134,29 @@ def _assert_names(exc, path):
 
 
 # ---------------------------------------------------------------------------- value strategies
-WRONG_FOR_STRING = st.one_of(st.integers(-5, 5).filter(lambda i: True), st.floats(allow_nan=True),
-                             st.booleans(), st.lists(st.integers(), max_size=2), st.just({"a": 1}))
-WRONG_FOR_NUMBER = st.one_of(st.text(max_size=5), st.booleans(), st.lists(st.floats(), max_size=2),
-                             st.just({"x": 1.0}), st.just(dt.datetime(2025, 1, 1)))
-WRONG_FOR_DATETIME = st.one_of(st.integers(), st.floats(), st.booleans(), st.lists(st.integers(), max_size=2),
-                               st.sampled_from(["yesterday", "2025-13-01", "2025-05-30T25:00", ""]),
-                               st.just(dt.datetime(2025, 5, 30, tzinfo=dt.timezone(dt.timedelta(hours=2)))),
-                               st.just(dt.time(12, 0)))
+WRONG_FOR_STRING = st.one_of(
+    st.integers(-5, 5).filter(lambda i: True),
+    st.floats(allow_nan=True),
+    st.booleans(),
+    st.lists(st.integers(), max_size=2),
+    st.just({"a": 1}),
+)
+WRONG_FOR_NUMBER = st.one_of(
+    st.text(max_size=5),
+    st.booleans(),
+    st.lists(st.floats(), max_size=2),
+    st.just({"x": 1.0}),
+    st.just(dt.datetime(2025, 1, 1)),
+)
+WRONG_FOR_DATETIME = st.one_of(
+    st.integers(),
+    st.floats(),
+    st.booleans(),
+    st.lists(st.integers(), max_size=2),
+    st.sampled_from(["yesterday", "2025-13-01", "2025-05-30T25:00", ""]),
+    st.just(dt.datetime(2025, 5, 30, tzinfo=dt.timezone(dt.timedelta(hours=2)))),
+    st.just(dt.time(12, 0)),
+)
 NON_FINITE = st.sampled_from([math.nan, math.inf, -math.inf])
 HUGE = st.sampled_from([1e300, -1e300, 1e16, 10**30, -(10**30), 10**400])
 
@@ -130,8 +175,21 @@ def _wrong_type(value):
 def corruption(draw):
     """(kind, path, corrupted raw dict, must_fail)."""
     raw = copy.deepcopy(RAW)
-    kind = draw(st.sampled_from(["wrong_type", "missing", "extra", "non_finite", "negative", "zero", "huge",
-                                 "table_to_scalar", "bad_choice"]))
+    kind = draw(
+        st.sampled_from(
+            [
+                "wrong_type",
+                "missing",
+                "extra",
+                "non_finite",
+                "negative",
+                "zero",
+                "huge",
+                "table_to_scalar",
+                "bad_choice",
+            ]
+        )
+    )
     if kind == "extra":
         path, node = draw(st.sampled_from([(p, v) for p, v in PATHS if isinstance(v, dict)] + [("", raw)]))
         key = draw(st.sampled_from(["thikness", "conductivty", "colum", "engine_", "foo", "Start", "units"]))
@@ -147,16 +205,20 @@ def corruption(draw):
         _set(raw, path, delete=True) if not path.endswith("]") else _set(raw, path, delete=True)
         keys = _split(path)
         in_list = len(keys) >= 3 and isinstance(keys[-2], int)  # a key of a layer, probe or sensor
-        must = path in REQUIRED or (in_list and keys[-1] in REQUIRED_LEAF_NAMES) or (
-            keys[0] == "boundary" and keys[-1] in ("type", "column"))
+        must = (
+            path in REQUIRED
+            or (in_list and keys[-1] in REQUIRED_LEAF_NAMES)
+            or (keys[0] == "boundary" and keys[-1] in ("type", "column"))
+        )
         return kind, path, raw, must
     if kind == "table_to_scalar":
         path, _ = draw(st.sampled_from([(p, v) for p, v in PATHS if isinstance(v, dict)]))
         _set(raw, path, draw(st.one_of(st.integers(), st.text(max_size=4), st.booleans())))
         return kind, path, raw, True
     if kind == "bad_choice":
-        path, _ = draw(st.sampled_from([(p, v) for p, v in LEAVES if _split(p)[-1] in
-                                        ("type", "engine", "quantity", "face")]))
+        path, _ = draw(
+            st.sampled_from([(p, v) for p, v in LEAVES if _split(p)[-1] in ("type", "engine", "quantity", "face")])
+        )
         _set(raw, path, draw(st.sampled_from(["fd-cnn", "surface", "temp", "interor", "", "FD-CN"])))
         return kind, path, raw, True
     if kind == "wrong_type":
@@ -205,8 +267,7 @@ def test_corrupted_study_names_the_key_path(case):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.sampled_from(PATHS), min_size=2, max_size=5, unique_by=lambda pv: pv[0]),
-       st.data())
+@given(st.lists(st.sampled_from(PATHS), min_size=2, max_size=5, unique_by=lambda pv: pv[0]), st.data())
 def test_several_corruptions_are_reported_together(targets, data):
     """Wrong types at several unrelated leaves: every one is reported in the same error."""
     raw = copy.deepcopy(RAW)
@@ -225,8 +286,13 @@ def test_several_corruptions_are_reported_together(targets, data):
 
 # ---------------------------------------------------------------------------- random valid studies
 MATERIALS = [  # (conductivity, density, specific heat)
-    (0.035, 40.0, 1030.0), (0.2, 530.0, 1600.0), (0.8, 1800.0, 840.0), (2.0, 2400.0, 1000.0),
-    (0.13, 500.0, 1600.0), (50.0, 7800.0, 450.0), (0.021, 30.0, 1400.0),
+    (0.035, 40.0, 1030.0),
+    (0.2, 530.0, 1600.0),
+    (0.8, 1800.0, 840.0),
+    (2.0, 2400.0, 1000.0),
+    (0.13, 500.0, 1600.0),
+    (50.0, 7800.0, 450.0),
+    (0.021, 30.0, 1400.0),
 ]
 
 
@@ -236,13 +302,23 @@ def valid_study(draw):
     layers = []
     for i in range(n):
         if draw(st.integers(0, 5)) == 0 and n > 1:
-            layers.append({"id": f"L{i}", "thermal_resistance": draw(st.floats(0.05, 0.5)),
-                           "thickness": draw(st.sampled_from([0.0, 0.02]))})
+            layers.append(
+                {
+                    "id": f"L{i}",
+                    "thermal_resistance": draw(st.floats(0.05, 0.5)),
+                    "thickness": draw(st.sampled_from([0.0, 0.02])),
+                }
+            )
             continue
         lam, rho, c = draw(st.sampled_from(MATERIALS))
         f = draw(st.floats(0.5, 2.0))
-        layer = {"id": i if draw(st.booleans()) else f"L{i}", "thickness": draw(st.floats(0.001, 0.3)),
-                 "conductivity": lam * f, "density": rho * f, "specific_heat": c}
+        layer = {
+            "id": i if draw(st.booleans()) else f"L{i}",
+            "thickness": draw(st.floats(0.001, 0.3)),
+            "conductivity": lam * f,
+            "density": rho * f,
+            "specific_heat": c,
+        }
         if draw(st.booleans()):
             layer["contact_resistance"] = draw(st.floats(0.0, 0.1))
         layers.append(layer)
@@ -251,11 +327,16 @@ def valid_study(draw):
     raw = copy.deepcopy(RAW)
     raw["wall"] = {"layers": layers, "probes": probes}
     raw["data"]["file"] = str(EXAMPLE.parent / "measured.csv")
-    raw["period"] = {"warmup_start": dt.datetime(2025, 5, 29), "start": dt.datetime(2025, 5, 30),
-                     "end": dt.datetime(2025, 5, 30, 12)}
-    raw["simulation"] = {"engine": draw(st.sampled_from(["fd-cn", "fd-implicit"])),
-                         "time_step": draw(st.sampled_from([10.0, 60.0, 300.0, 900.0, 3600.0])),
-                         "grid_constant": draw(st.floats(0.5, 5.0))}
+    raw["period"] = {
+        "warmup_start": dt.datetime(2025, 5, 29),
+        "start": dt.datetime(2025, 5, 30),
+        "end": dt.datetime(2025, 5, 30, 12),
+    }
+    raw["simulation"] = {
+        "engine": draw(st.sampled_from(["fd-cn", "fd-implicit"])),
+        "time_step": draw(st.sampled_from([10.0, 60.0, 300.0, 900.0, 3600.0])),
+        "grid_constant": draw(st.floats(0.5, 5.0)),
+    }
     raw.pop("calibration")
     return raw
 
@@ -289,8 +370,10 @@ def _cli(tmp_path, capsys, text: bytes | str):
 
 
 CLI_CASES = {
-    "negative conductivity": (lambda r: _set(r, "wall.layers[2].conductivity", -0.035),
-                              "wall.layers[2].conductivity: must be > 0"),
+    "negative conductivity": (
+        lambda r: _set(r, "wall.layers[2].conductivity", -0.035),
+        "wall.layers[2].conductivity: must be > 0",
+    ),
     "nan density": (lambda r: _set(r, "wall.layers[0].density", math.nan), "wall.layers[0].density"),
     "unknown key": (lambda r: _set(r, "wall.layers[1].thikness", 0.1), "did you mean 'thickness'"),
     "missing period": (lambda r: _set(r, "period", delete=True), "period: required table"),
@@ -327,12 +410,15 @@ def test_one_bad_layer_value_gives_one_problem():
     assert exc.problems == ["wall.layers[0].density: must be a finite number, got nan"]
 
 
-@pytest.mark.parametrize("content,expect", [
-    (b"", "no valid"),                                   # empty file: every required table is missing
-    (b"\xff\xfe[wall]\n", "not valid UTF-8"),
-    (b"[wall\nlayers = 3", "not valid TOML"),
-    (b"wall = 3\n", "wall: must be a table"),
-])
+@pytest.mark.parametrize(
+    "content,expect",
+    [
+        (b"", "no valid"),  # empty file: every required table is missing
+        (b"\xff\xfe[wall]\n", "not valid UTF-8"),
+        (b"[wall\nlayers = 3", "not valid TOML"),
+        (b"wall = 3\n", "wall: must be a table"),
+    ],
+)
 def test_cli_unreadable_study_files(content, expect, tmp_path, capsys):
     code, err = _cli(tmp_path, capsys, content)
     assert code == 2, err

@@ -35,8 +35,24 @@ def test_cli_grid_study(tmp_path, capsys):
     from wallcal.cli import main
 
     out = tmp_path / "g"
-    assert main(["grid-study", str(EXAMPLE), "--time-steps", "300,900", "--grid-constants", "2,3",
-                 "--targets", "T3A", "--out", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "grid-study",
+                str(EXAMPLE),
+                "--time-steps",
+                "300,900",
+                "--grid-constants",
+                "2,3",
+                "--targets",
+                "T3A",
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "T3A C=2" in text and "tolerance" in text
     assert (out / "grid_study.png").exists() and (out / "rmse_vs_time_step.csv").exists()

@@ -237,9 +237,7 @@ def test_profile_energy_conservation():
             x = np.linspace(x0, x0 + layer.thickness, 2001)
             th = iso13786.periodic_profile(wall, DAY, te, ti, x, interface_side="interior").temperature
             # endpoints: take the value inside this layer
-            th[0] = iso13786.periodic_profile(wall, DAY, te, ti, [x0], interface_side="interior").temperature[
-                0
-            ]
+            th[0] = iso13786.periodic_profile(wall, DAY, te, ti, [x0], interface_side="interior").temperature[0]
             th[-1] = iso13786.periodic_profile(
                 wall, DAY, te, ti, [x0 + layer.thickness], interface_side="exterior"
             ).temperature[0]

@@ -54,8 +54,10 @@ GRID_C = 1.0
 
 def _concrete_wall():
     """0.4 m of concrete: at T = 8 h, xi = 4.8 and the lag of Y12 (5.1 h) exceeds T/2."""
-    return Wall((Layer("c", 0.4, 1.8, 2400.0, 1000.0, "concrete"),),
-                (Probe("c10", 0.10), Probe("c20", 0.20), Probe("c30", 0.30)))
+    return Wall(
+        (Layer("c", 0.4, 1.8, 2400.0, 1000.0, "concrete"),),
+        (Probe("c10", 0.10), Probe("c20", 0.20), Probe("c30", 0.30)),
+    )
 
 
 CASES = {
@@ -81,8 +83,11 @@ def _fd_fundamentals(wall, period_s, n_periods, grid_constant):
         sl = slice(n - (k + 1) * m, n - k * m)  # m samples, the end point of the period excluded
         return 2.0 / m * np.sum(np.asarray(x)[sl] * np.exp(-1j * w * t[sl]))
 
-    res = {"q_int": proj(out.fluxes["interior"]), "q_ext": proj(out.fluxes["exterior"]),
-           "q_int_previous": proj(out.fluxes["interior"], 1)}
+    res = {
+        "q_int": proj(out.fluxes["interior"]),
+        "q_ext": proj(out.fluxes["exterior"]),
+        "q_int_previous": proj(out.fluxes["interior"], 1),
+    }
     res["probes"] = np.array([proj(out.temperatures[p.name]) for p in wall.probes])
     return res
 
@@ -146,8 +151,12 @@ def test_fd_converges_to_iso13786():
     errs = []
     for c in (2.0, 1.0, 0.5):
         fd = _fd_fundamentals(wall, period_s, 6, c)
-        errs.append((abs(fd["q_int"] / AMPLITUDE - dc.Y12) / abs(dc.Y12),
-                     np.max(np.abs(fd["probes"] - prof.temperature)) / AMPLITUDE))
+        errs.append(
+            (
+                abs(fd["q_int"] / AMPLITUDE - dc.Y12) / abs(dc.Y12),
+                np.max(np.abs(fd["probes"] - prof.temperature)) / AMPLITUDE,
+            )
+        )
     errs = np.array(errs)
     ratios = errs[1:] / errs[:-1]
     assert np.all((ratios > 0.35) & (ratios < 0.65)), errs

@@ -31,9 +31,7 @@ def study_wall(air_material="Air gap, slightly ventilated"):
 
 
 # sum of d / lambda of layers #3..#9 by hand
-R_3_TO_9 = (
-    0.10 / 0.04 + 0.0125 / 0.2 + 0.04 / 0.035 + 0.0125 / 0.2 + 0.095 / 0.035 + 0.055 / 0.035 + 0.025 / 0.21
-)
+R_3_TO_9 = 0.10 / 0.04 + 0.0125 / 0.2 + 0.04 / 0.035 + 0.0125 / 0.2 + 0.095 / 0.035 + 0.055 / 0.035 + 0.025 / 0.21
 R_WOOD = 0.015 / 0.13
 
 
@@ -145,9 +143,7 @@ def test_air_layers_empty_dict_disables_detection():
 def test_contact_resistance_and_temperature():
     wall = Wall(
         (
-            Layer(
-                "a", 0.1, 0.04, 30, 1000, contact_resistance=0.05, conductivity_temperature_coefficient=0.0046
-            ),
+            Layer("a", 0.1, 0.04, 30, 1000, contact_resistance=0.05, conductivity_temperature_coefficient=0.0046),
             Layer("b", 0.02, 0.2, 500, 1600),
         )
     )

@@ -41,8 +41,11 @@ def sha(path):
 
 def leftovers(d):
     """Temporary directories, old copies and lock files next to the outputs."""
-    return sorted(p.name for p in d.iterdir() if p.name.startswith(".") and ("tmp" in p.name or "old" in p.name
-                                                                             or p.name.endswith(".lock")))
+    return sorted(
+        p.name
+        for p in d.iterdir()
+        if p.name.startswith(".") and ("tmp" in p.name or "old" in p.name or p.name.endswith(".lock"))
+    )
 
 
 def check_manifest(out, study, command):
@@ -54,11 +57,14 @@ def check_manifest(out, study, command):
     return m
 
 
-@pytest.mark.parametrize("argv,command,files", [
-    (["simulate"], "simulate", ["simulated.csv", "metrics.csv", "summary.csv", "info.json"]),
-    (["calibrate", "--quiet"], "calibrate", ["calibrated_wall.toml", "calibration.json", "metrics.csv"]),
-    (["iso9869"], "iso9869", ["iso9869.csv", "iso9869.json"]),
-])
+@pytest.mark.parametrize(
+    "argv,command,files",
+    [
+        (["simulate"], "simulate", ["simulated.csv", "metrics.csv", "summary.csv", "info.json"]),
+        (["calibrate", "--quiet"], "calibrate", ["calibrated_wall.toml", "calibration.json", "metrics.csv"]),
+        (["iso9869"], "iso9869", ["iso9869.csv", "iso9869.json"]),
+    ],
+)
 def test_commands_write_complete_traceable_results(study, argv, command, files, capsys):
     out = study.parent / "out"
     assert main([argv[0], str(study), "--out", str(out), *argv[1:]]) == 0
@@ -159,12 +165,16 @@ def test_concurrent_run_into_the_same_out_is_refused(study, capsys):
 def test_concurrent_processes_never_interleave(study, tmp_path):
     """Two processes race into the same --out: each either writes a whole result or is refused."""
     out = tmp_path / "race"
-    code = ("import sys, time\nfrom wallcal.outputs import output_dir, OutputBusyError\n"
-            "try:\n    with output_dir(sys.argv[1]) as d:\n"
-            "        for i in range(20):\n            (d / f'f{i}.txt').write_text(sys.argv[2]); time.sleep(0.01)\n"
-            "except OutputBusyError as e:\n    print('busy'); sys.exit(3)\n")
-    procs = [subprocess.Popen([sys.executable, "-c", code, str(out), tag], stdout=subprocess.PIPE, text=True)
-             for tag in ("A", "B")]
+    code = (
+        "import sys, time\nfrom wallcal.outputs import output_dir, OutputBusyError\n"
+        "try:\n    with output_dir(sys.argv[1]) as d:\n"
+        "        for i in range(20):\n            (d / f'f{i}.txt').write_text(sys.argv[2]); time.sleep(0.01)\n"
+        "except OutputBusyError as e:\n    print('busy'); sys.exit(3)\n"
+    )
+    procs = [
+        subprocess.Popen([sys.executable, "-c", code, str(out), tag], stdout=subprocess.PIPE, text=True)
+        for tag in ("A", "B")
+    ]
     codes = [p.wait(60) for p in procs]
     assert sorted(codes) in ([0, 0], [0, 3]), codes
     tags = {(out / f"f{i}.txt").read_text() for i in range(20)}

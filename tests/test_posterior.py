@@ -32,10 +32,22 @@ def test_short_run_checkpoint_and_resume(example_study, tmp_path):
     from wallcal.analysis.posterior import _save, checkpoint_path
 
     ck = checkpoint_path(out)
-    _save(ck, r.chain, r.log_prob, {"names": r.space.names, "targets": list(r.space.targets), "sigma": r.sigma,
-                                     "phi": r.phi, "walkers": 40, "study_sha256": example_study.sha256})
-    r2 = posterior(example_study, walkers=40, steps=9, progress=False, out_dir=out, resume=True,
-                   nonunique_candidates=16)
+    _save(
+        ck,
+        r.chain,
+        r.log_prob,
+        {
+            "names": r.space.names,
+            "targets": list(r.space.targets),
+            "sigma": r.sigma,
+            "phi": r.phi,
+            "walkers": 40,
+            "study_sha256": example_study.sha256,
+        },
+    )
+    r2 = posterior(
+        example_study, walkers=40, steps=9, progress=False, out_dir=out, resume=True, nonunique_candidates=16
+    )
     assert r2.chain.shape[0] == 9
     assert np.array_equal(r2.chain[:6], r.chain)
     assert not ck.exists()

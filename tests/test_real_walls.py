@@ -39,8 +39,11 @@ def _write(path, stamps, **cols):
 def _multi_study(tmp_path, files, **data):
     raw = tomllib.loads(TRH.read_text())
     raw["data"] = {"time_column": "time", "max_gap": 3600, **data, "files": files}
-    raw["period"] = {"warmup_start": "2021-01-01T00:10:00", "start": "2021-01-01T00:20:00",
-                     "end": "2021-01-01T00:50:00"}
+    raw["period"] = {
+        "warmup_start": "2021-01-01T00:10:00",
+        "start": "2021-01-01T00:20:00",
+        "end": "2021-01-01T00:50:00",
+    }
     raw.pop("calibration")
     return parse_study(raw, base_dir=tmp_path)
 
@@ -51,9 +54,11 @@ def _three_files(tmp_path, shift_cavity=False):
     _write(tmp_path / "in.csv", t.strftime("%Y-%m-%d %H:%M:%S"), T=np.linspace(20, 21, 7), RH=40.0)
     _write(tmp_path / "cav.csv", tc.strftime("%Y-%m-%d %H:%M:%S"), T=np.linspace(-5, -4, 7), RH=80.0)
     _write(tmp_path / "probe.csv", t.strftime("%Y-%m-%d %H:%M:%S"), T=np.linspace(0, 1, 7), RH=60.0)
-    return [{"file": "in.csv", "columns": {"T_indoor": "T"}},
-            {"file": "cav.csv", "columns": {"T_cavity": "T"}},
-            {"file": "probe.csv", "prefix": "interface_"}]
+    return [
+        {"file": "in.csv", "columns": {"T_indoor": "T"}},
+        {"file": "cav.csv", "columns": {"T_cavity": "T"}},
+        {"file": "probe.csv", "prefix": "interface_"},
+    ]
 
 
 def test_files_joined_on_timestamps(tmp_path):
@@ -77,8 +82,11 @@ def test_mismatched_timestamps_outer_join_without_interpolation(tmp_path):
 def test_files_errors_name_file_and_key(tmp_path):
     files = _three_files(tmp_path)
     files[1] = {"file": "cav.csv", "columns": {"T_cavity": "Temp"}}
-    with pytest.raises(DataError, match=r"cav.csv: column 'Temp' \(data.files\[1\].columns.T_cavity\) not found; "
-                                        r"valid names: 'time', 'T', 'RH'"):
+    with pytest.raises(
+        DataError,
+        match=r"cav.csv: column 'Temp' \(data.files\[1\].columns.T_cavity\) not found; "
+        r"valid names: 'time', 'T', 'RH'",
+    ):
         load_measurements(_multi_study(tmp_path, files))
     files = _three_files(tmp_path)
     files[2] = {"file": "probe.csv"}  # no prefix: its 'T' and 'RH' are fine, but the study wants interface_T
@@ -140,8 +148,11 @@ def trh():
 
 
 def test_trh_example_simulates(trh, tmp_path):
-    assert [f.file.name for f in trh.data.files] == ["sisailma.csv", "tuuletusvali.csv",
-                                                    "rajapinta_lammoneriste_tuulensuoja.csv"]
+    assert [f.file.name for f in trh.data.files] == [
+        "sisailma.csv",
+        "tuuletusvali.csv",
+        "rajapinta_lammoneriste_tuulensuoja.csv",
+    ]
     res = simulate(trh)
     rmse = res.metrics.set_index("signal").loc["interface", "rmse"]
     assert rmse == pytest.approx(0.545, abs=0.02)

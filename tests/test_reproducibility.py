@@ -26,8 +26,11 @@ def batch(example_study):
     for _ in range(32):
         w = example_study.wall
         for layer in w.layers:
-            w = w.replace_layer(layer.id, conductivity=layer.conductivity * rng.uniform(0.8, 1.2),
-                                density=layer.density * rng.uniform(0.8, 1.2))
+            w = w.replace_layer(
+                layer.id,
+                conductivity=layer.conductivity * rng.uniform(0.8, 1.2),
+                density=layer.density * rng.uniform(0.8, 1.2),
+            )
         walls.append(w)
     return eng, PropertyArrays.from_walls(walls), eng.probe_depth_matrix(walls)
 

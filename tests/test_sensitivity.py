@@ -17,8 +17,9 @@ def test_oat_ranks_the_insulation_first(example_study):
     assert ins["share"].sum() > 0.5
     assert {"dRMSE_T3A_lower", "dRMSE_T1A_upper"} <= set(r.ranking.columns)
     # density and specific heat of one layer act through their product: same effect at +-20 %
-    assert np.isclose(r.ranking.loc["density[3]", "d_objective_upper"],
-                      r.ranking.loc["specific_heat[3]", "d_objective_upper"])
+    assert np.isclose(
+        r.ranking.loc["density[3]", "d_objective_upper"], r.ranking.loc["specific_heat[3]", "d_objective_upper"]
+    )
 
 
 def test_sobol_and_morris_small(example_study, tmp_path):

@@ -142,7 +142,7 @@ def test_wall_file_and_wall_from_study(tmp_path, raw):
 
 def test_not_utf8_and_bad_toml(tmp_path):
     p = tmp_path / "s.toml"
-    p.write_bytes(b"[study]\nname = \"\xff\xfe\"\n")
+    p.write_bytes(b'[study]\nname = "\xff\xfe"\n')
     with pytest.raises(StudyError, match="not valid UTF-8"):
         load_study(p)
     p.write_text("[study\nname=1")

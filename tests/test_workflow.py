@@ -36,8 +36,14 @@ def test_run_example_with_a_failing_optional_stage(tmp_path, monkeypatch, capsys
     html = (out / "index.html").read_text()
     assert "simulated failure of the grid study" in html and "Stages that failed" in html
     assert (out / "grid" / "error.txt").exists()
-    for f in ("calibration/calibrated_wall.toml", "engines/comparison.csv", "standards/wall_figures.csv",
-              "identifiability/identifiability.json", "data/summary.csv", "manifest.json"):
+    for f in (
+        "calibration/calibrated_wall.toml",
+        "engines/comparison.csv",
+        "standards/wall_figures.csv",
+        "identifiability/identifiability.json",
+        "data/summary.csv",
+        "manifest.json",
+    ):
         assert (out / f).exists(), f
 
 

@@ -116,13 +116,16 @@ def _numeric(series: pd.Series, col: str, path: Path) -> np.ndarray:
     huge = np.abs(out) > 1e15  # beyond any physical reading; squares of such values overflow in the metrics
     if huge.any():
         i = int(np.flatnonzero(huge)[0])
-        raise DataError(f"{path}: column {col!r} has a value out of any physical range, {out[i]:g}, at data row "
-                        f"{i + 1} (line {i + 2})")
+        raise DataError(
+            f"{path}: column {col!r} has a value out of any physical range, {out[i]:g}, at data row "
+            f"{i + 1} (line {i + 2})"
+        )
     return out
 
 
-def _timestamps(frame: pd.DataFrame, study: Study, path: Path, time_column: str | None = None,
-                key: str = "data.time_column") -> pd.DatetimeIndex:
+def _timestamps(
+    frame: pd.DataFrame, study: Study, path: Path, time_column: str | None = None, key: str = "data.time_column"
+) -> pd.DatetimeIndex:
     spec = study.data
     if time_column is not None:
         import dataclasses
@@ -137,18 +140,22 @@ def _timestamps(frame: pd.DataFrame, study: Study, path: Path, time_column: str 
         try:
             idx = pd.DatetimeIndex(pd.Timestamp(spec.start) + pd.to_timedelta(secs, unit="s"))
         except (OverflowError, pd.errors.OutOfBoundsTimedelta, pd.errors.OutOfBoundsDatetime) as exc:
-            raise DataError(f"{path}: column {spec.time_column!r} has elapsed seconds that put the timestamps "
-                            f"outside the years 1677-2262 (from {np.nanmin(secs):g} to {np.nanmax(secs):g} s after "
-                            "data.start)") from exc
+            raise DataError(
+                f"{path}: column {spec.time_column!r} has elapsed seconds that put the timestamps "
+                f"outside the years 1677-2262 (from {np.nanmin(secs):g} to {np.nanmax(secs):g} s after "
+                "data.start)"
+            ) from exc
     else:
         text = col.astype(str).str.strip()
         try:
             parsed = pd.to_datetime(text, format="ISO8601", utc=False)
         except (ValueError, TypeError) as exc:
             if "mixed timezones" in str(exc).lower() or "mixed time" in str(exc).lower():
-                raise DataError(f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
-                                "winter time) or naive and aware timestamps; wallcal needs one local standard "
-                                "time: convert the column to a single offset") from exc
+                raise DataError(
+                    f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
+                    "winter time) or naive and aware timestamps; wallcal needs one local standard "
+                    "time: convert the column to a single offset"
+                ) from exc
             # find the first bad row for the message
             for i, v in enumerate(text):
                 try:
@@ -158,21 +165,27 @@ def _timestamps(frame: pd.DataFrame, study: Study, path: Path, time_column: str 
                         f"{path}: column {spec.time_column!r} has a value that is not an ISO 8601 date-time: "
                         f"{v!r} at data row {i + 1} (line {i + 2})"
                     ) from exc
-            raise DataError(f"{path}: column {spec.time_column!r}: mixed time-zone offsets or unreadable "
-                            f"date-times ({exc}); give every timestamp the same offset or none") from exc
+            raise DataError(
+                f"{path}: column {spec.time_column!r}: mixed time-zone offsets or unreadable "
+                f"date-times ({exc}); give every timestamp the same offset or none"
+            ) from exc
         if isinstance(parsed, pd.Series):
             if parsed.dtype == object:
-                raise DataError(f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
-                                "winter time) or naive and aware timestamps; wallcal needs one local standard "
-                                "time: convert the column or give data.utc_offset")
+                raise DataError(
+                    f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
+                    "winter time) or naive and aware timestamps; wallcal needs one local standard "
+                    "time: convert the column or give data.utc_offset"
+                )
             idx = pd.DatetimeIndex(parsed)
         else:
             idx = pd.DatetimeIndex(parsed)
         if idx.tz is not None:
             if spec.utc_offset is None:
-                raise DataError(f"{path}: column {spec.time_column!r} carries a time-zone offset; give "
-                                "data.utc_offset (the offset of local standard time, e.g. \"+01:00\") so that "
-                                "wallcal can convert to local standard time")
+                raise DataError(
+                    f"{path}: column {spec.time_column!r} carries a time-zone offset; give "
+                    'data.utc_offset (the offset of local standard time, e.g. "+01:00") so that '
+                    "wallcal can convert to local standard time"
+                )
             offset = _dt.datetime.strptime(spec.utc_offset.replace("Z", "+00:00"), "%z").tzinfo
             idx = idx.tz_convert(offset).tz_localize(None)
     if idx.isna().any():
@@ -181,12 +194,15 @@ def _timestamps(frame: pd.DataFrame, study: Study, path: Path, time_column: str 
     d = np.diff(idx.asi8)
     if (d == 0).any():
         i = int(np.flatnonzero(d == 0)[0])
-        raise DataError(f"{path}: duplicate timestamp {idx[i]} at data rows {i + 1} and {i + 2}; "
-                        "remove the duplicate rows")
+        raise DataError(
+            f"{path}: duplicate timestamp {idx[i]} at data rows {i + 1} and {i + 2}; remove the duplicate rows"
+        )
     if (d < 0).any():
         i = int(np.flatnonzero(d < 0)[0])
-        raise DataError(f"{path}: timestamps are not increasing: {idx[i]} (data row {i + 1}) is followed by "
-                        f"{idx[i + 1]} (data row {i + 2}); sort the file by time")
+        raise DataError(
+            f"{path}: timestamps are not increasing: {idx[i]} (data row {i + 1}) is followed by "
+            f"{idx[i + 1]} (data row {i + 2}); sort the file by time"
+        )
     return idx
 
 
@@ -207,9 +223,11 @@ def _check_temperature(values_C: np.ndarray, col: str, unit: str, path) -> None:
     bad = values_C < -KELVIN
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        hint = " (is the column in kelvin? say unit = \"K\")" if unit == "degC" else ""
-        raise DataError(f"{path}: column {col!r} holds a temperature below absolute zero at data row {i + 1} "
-                        f"(line {i + 2}): {values_C[i] + (KELVIN if unit == 'K' else 0):g} {unit}{hint}")
+        hint = ' (is the column in kelvin? say unit = "K")' if unit == "degC" else ""
+        raise DataError(
+            f"{path}: column {col!r} holds a temperature below absolute zero at data row {i + 1} "
+            f"(line {i + 2}): {values_C[i] + (KELVIN if unit == 'K' else 0):g} {unit}{hint}"
+        )
 
 
 # ---------------------------------------------------------------------------- spikes and gaps
@@ -328,8 +346,10 @@ def read_joined(study: Study) -> tuple[pd.DataFrame, list[str]]:
         cols: dict[str, np.ndarray] = {}
         for name, col in pairs:
             if name in owner:
-                raise DataError(f"{f.file}: column {col!r} would be named {name!r}, which {owner[name]} already "
-                                f"gives; use a prefix or a columns mapping in {key}")
+                raise DataError(
+                    f"{f.file}: column {col!r} would be named {name!r}, which {owner[name]} already "
+                    f"gives; use a prefix or a columns mapping in {key}"
+                )
             owner[name] = f"{key} ({f.file.name})"
             available.append(name)
             if name in wanted:
@@ -337,16 +357,17 @@ def read_joined(study: Study) -> tuple[pd.DataFrame, list[str]]:
         parts.append(pd.DataFrame(cols, index=index))
     for col, key in wanted.items():
         if col not in owner:
-            raise DataError(f"data.files: column {col!r} ({key}) is not given by any file; "
-                            f"{closest(col, available)}")
+            raise DataError(f"data.files: column {col!r} ({key}) is not given by any file; {closest(col, available)}")
     frame = pd.concat(parts, axis=1, join="outer", sort=True)
     frame.index.name = "timestamp"
     common = stamps[0]
     for idx in stamps[1:]:
         common = common.intersection(idx)
-    notes = [f"data.files: {len(spec.files)} files joined on their timestamps (outer join): {len(frame)} timestamps, "
-             f"{len(common)} present in every file"
-             + ("" if len(common) == len(frame) else "; values are compared only at their own file's timestamps")]
+    notes = [
+        f"data.files: {len(spec.files)} files joined on their timestamps (outer join): {len(frame)} timestamps, "
+        f"{len(common)} present in every file"
+        + ("" if len(common) == len(frame) else "; values are compared only at their own file's timestamps")
+    ]
     return frame, notes
 
 
@@ -355,8 +376,9 @@ def _file_columns(f: DataFileSpec, raw: pd.DataFrame, key: str) -> list[tuple[st
     if f.columns is not None:
         for name, col in f.columns:
             if col not in raw.columns:
-                raise DataError(f"{f.file}: column {col!r} ({key}.columns.{name}) not found; "
-                                f"{closest(col, list(raw.columns))}")
+                raise DataError(
+                    f"{f.file}: column {col!r} ({key}.columns.{name}) not found; {closest(col, list(raw.columns))}"
+                )
         return list(f.columns)
     return [(f.prefix + c, c) for c in raw.columns if c != f.time_column]
 
@@ -459,8 +481,9 @@ def load_measurements(study: Study) -> Measurements:
                 )
             gap_rows.append((b.column, a, c, secs))
     gaps = pd.DataFrame(gap_rows, columns=["signal", "start", "end", "seconds"])
-    return Measurements(frame=frame, spikes=spikes, bridged_gaps=gaps, source=spec.file, sha256=data_sha256(study),
-                        notes=notes)
+    return Measurements(
+        frame=frame, spikes=spikes, bridged_gaps=gaps, source=spec.file, sha256=data_sha256(study), notes=notes
+    )
 
 
 def summarize(frame: pd.DataFrame, start, end) -> pd.DataFrame:
@@ -480,8 +503,14 @@ def summarize(frame: pd.DataFrame, start, end) -> pd.DataFrame:
         if len(v) == 0:
             rows[col] = dict(n=0, max=np.nan, min=np.nan, range=np.nan, mean=np.nan, effective=np.nan)
             continue
-        rows[col] = dict(n=len(v), max=v.max(), min=v.min(), range=v.max() - v.min(), mean=v.mean(),
-                         effective=float(np.sqrt(np.mean(v**2))))
+        rows[col] = dict(
+            n=len(v),
+            max=v.max(),
+            min=v.min(),
+            range=v.max() - v.min(),
+            mean=v.mean(),
+            effective=float(np.sqrt(np.mean(v**2))),
+        )
     out = pd.DataFrame.from_dict(rows, orient="index")
     out["n"] = out["n"].astype(int)
     out.index.name = "signal"

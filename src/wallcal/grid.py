@@ -86,8 +86,9 @@ class Grid:
         return len(self.link_layer)
 
 
-def intervals_for_layer(thickness: float, diffusivity: float, time_step: float, grid_constant: float,
-                        rule: str = "wallcal") -> int:
+def intervals_for_layer(
+    thickness: float, diffusivity: float, time_step: float, grid_constant: float, rule: str = "wallcal"
+) -> int:
     """Number of intervals in a massive layer under a node rule (see module docstring).
 
     Parameters
@@ -114,8 +115,13 @@ def intervals_for_layer(thickness: float, diffusivity: float, time_step: float, 
     return max(1, n)
 
 
-def build_grid(wall: Wall, time_step: float, grid_constant: float, rule: str = "wallcal",
-               contact_layers: set[int] | frozenset[int] = frozenset()) -> Grid:
+def build_grid(
+    wall: Wall,
+    time_step: float,
+    grid_constant: float,
+    rule: str = "wallcal",
+    contact_layers: set[int] | frozenset[int] = frozenset(),
+) -> Grid:
     """Build the node layout of ``wall``.
 
     Parameters
@@ -234,15 +240,24 @@ def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]
         are re-evaluated in the kernel).
     """
     f = np.ascontiguousarray
-    return _assemble_kernel(grid.link_layer, grid.link_intervals, grid.link_contact_of, grid.n_nodes,
-                            f(props.thickness, dtype=float), f(props.conductivity, dtype=float),
-                            f(props.volumetric_heat_capacity, dtype=float), f(props.thermal_resistance, dtype=float),
-                            f(props.contact_resistance, dtype=float), MIN_CONTACT_RESISTANCE)
+    return _assemble_kernel(
+        grid.link_layer,
+        grid.link_intervals,
+        grid.link_contact_of,
+        grid.n_nodes,
+        f(props.thickness, dtype=float),
+        f(props.conductivity, dtype=float),
+        f(props.volumetric_heat_capacity, dtype=float),
+        f(props.thermal_resistance, dtype=float),
+        f(props.contact_resistance, dtype=float),
+        MIN_CONTACT_RESISTANCE,
+    )
 
 
 @njit(cache=True)
-def _assemble_kernel(link_layer, link_n, link_contact_of, n_nodes, thickness, conductivity, vhc, r_layer, r_contact,
-                     r_min):
+def _assemble_kernel(
+    link_layer, link_n, link_contact_of, n_nodes, thickness, conductivity, vhc, r_layer, r_contact, r_min
+):
     """Massive link: g = lambda n / d, each end node gets half the interval's capacity rho c d / (2 n);
     no-mass link: g = 1 / R; contact link: g = 1 / max(R_contact, r_min)."""
     nc = thickness.shape[0]

@@ -23,13 +23,24 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-METRIC_COLUMNS = ("signal", "n", "rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14", "mae",
-                  "max_abs_error", "accuracy", "within_accuracy")
+METRIC_COLUMNS = (
+    "signal",
+    "n",
+    "rmse",
+    "rn_rmse",
+    "cv_rmse_eff",
+    "mbe",
+    "nmbe",
+    "cv_rmse_g14",
+    "mae",
+    "max_abs_error",
+    "accuracy",
+    "within_accuracy",
+)
 G14_PARAMETERS = 1
 
 
-def compute(measured, simulated, accuracy: float | None = None,
-            accuracy_relative: float | None = None) -> dict:
+def compute(measured, simulated, accuracy: float | None = None, accuracy_relative: float | None = None) -> dict:
     """All metrics for one signal; NaN pairs are skipped.
 
     Parameters
@@ -53,9 +64,19 @@ def compute(measured, simulated, accuracy: float | None = None,
     n = len(y)
     nan = float("nan")
     if n == 0:
-        return dict(n=0, rmse=nan, rn_rmse=nan, cv_rmse_eff=nan, mbe=nan, nmbe=nan, cv_rmse_g14=nan, mae=nan,
-                    max_abs_error=nan, accuracy=accuracy if accuracy is not None else nan,
-                    within_accuracy=False)
+        return dict(
+            n=0,
+            rmse=nan,
+            rn_rmse=nan,
+            cv_rmse_eff=nan,
+            mbe=nan,
+            nmbe=nan,
+            cv_rmse_g14=nan,
+            mae=nan,
+            max_abs_error=nan,
+            accuracy=accuracy if accuracy is not None else nan,
+            within_accuracy=False,
+        )
     e = s - y
     rmse = float(np.sqrt(np.mean(e**2)))
     rng = float(y.max() - y.min())

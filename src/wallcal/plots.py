@@ -14,8 +14,9 @@ def plot_measurements(study, frame: pd.DataFrame, path, start=None, end=None):
     start = pd.Timestamp(start or study.period.start)
     end = pd.Timestamp(end or study.period.end)
     f = frame.loc[(frame.index >= start) & (frame.index <= end)]
-    fig, (ax1, ax3) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, layout="constrained",
-                                   gridspec_kw={"height_ratios": [2, 1.2]})
+    fig, (ax1, ax3) = plt.subplots(
+        2, 1, figsize=(11, 6.5), sharex=True, layout="constrained", gridspec_kw={"height_ratios": [2, 1.2]}
+    )
     temps = [s for s in study.sensors if s.quantity == "temperature"]
     fluxes = [s for s in study.sensors if s.quantity == "heat_flux"]
     for s in temps:

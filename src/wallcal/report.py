@@ -78,8 +78,10 @@ def figure_html(title: str, path: Path) -> str:
     if not path.exists():
         return f'<p class="note">Figure missing: {html.escape(path.name)}</p>'
     data = base64.b64encode(path.read_bytes()).decode()
-    return (f'<figure><img alt="{html.escape(title)}" src="data:image/png;base64,{data}">'
-            f"<figcaption>{html.escape(title)}</figcaption></figure>")
+    return (
+        f'<figure><img alt="{html.escape(title)}" src="data:image/png;base64,{data}">'
+        f"<figcaption>{html.escape(title)}</figcaption></figure>"
+    )
 
 
 def _summary(study, outputs) -> str:
@@ -89,11 +91,14 @@ def _summary(study, outputs) -> str:
     if d and d.status == "ok" and d.tables:
         summ = d.tables[0][1]
         temps = [s.name for s in study.sensors if s.quantity == "temperature"]
-        rng = ", ".join(f"{t} {summ.loc[t, 'min']:.1f}..{summ.loc[t, 'max']:.1f} degC"
-                        for t in temps if t in summ.index)
-        items.append(f"<b>Measured.</b> {html.escape(study.wall.name or 'The wall')}: {len(study.wall.layers)} layers, "
-                     f"{study.wall.thickness * 100:.1f} cm; probes {html.escape(rng)}; period {study.period.start} to "
-                     f"{study.period.end}.")
+        rng = ", ".join(
+            f"{t} {summ.loc[t, 'min']:.1f}..{summ.loc[t, 'max']:.1f} degC" for t in temps if t in summ.index
+        )
+        items.append(
+            f"<b>Measured.</b> {html.escape(study.wall.name or 'The wall')}: {len(study.wall.layers)} layers, "
+            f"{study.wall.thickness * 100:.1f} cm; probes {html.escape(rng)}; period {study.period.start} to "
+            f"{study.period.end}."
+        )
     e = by.get("engines")
     if e and e.status == "ok" and e.text:
         items.append("<b>Base case.</b> " + html.escape(e.text[0]))
@@ -104,8 +109,10 @@ def _summary(study, outputs) -> str:
         parts = []
         for sig, r in rm.iterrows():
             floor = r.get("noise floor (reference wall)", float("nan"))
-            parts.append(f"{sig} {r['base']:.3f} -> {r['calibrated']:.3f}"
-                         + (f" (floor {floor:.3f})" if isinstance(floor, float) and not math.isnan(floor) else ""))
+            parts.append(
+                f"{sig} {r['base']:.3f} -> {r['calibrated']:.3f}"
+                + (f" (floor {floor:.3f})" if isinstance(floor, float) and not math.isnan(floor) else "")
+            )
         items.append("<b>RMSE before -> after.</b> " + html.escape("; ".join(parts)) + ".")
     i = by.get("identifiability")
     if i and i.status == "ok" and i.text:
@@ -118,13 +125,18 @@ def _summary(study, outputs) -> str:
         u = wf.loc[[r for r in wf.index if r.startswith("U ")][0]]
         shift = wf.loc["time shift [h]"]
         f = wf.loc["decrement factor [-]"]
-        txt = "; ".join(f"{col}: U {u[col]:.3f} W/(m2K), decrement factor {f[col]:.3f}, time shift {shift[col]:.1f} h"
-                        for col in wf.columns)
+        txt = "; ".join(
+            f"{col}: U {u[col]:.3f} W/(m2K), decrement factor {f[col]:.3f}, time shift {shift[col]:.1f} h"
+            for col in wf.columns
+        )
         items.append("<b>Wall figures.</b> " + html.escape(txt) + ".")
     failed = [o for o in outputs if o.status == "failed"]
     if failed:
-        items.append('<span class="note"><b>Stages that failed:</b> ' + html.escape(
-            "; ".join(f"{o.title}: {o.message}" for o in failed)) + "</span>")
+        items.append(
+            '<span class="note"><b>Stages that failed:</b> '
+            + html.escape("; ".join(f"{o.title}: {o.message}" for o in failed))
+            + "</span>"
+        )
     return "<ul class='summary'>" + "".join(f"<li>{x}</li>" for x in items) + "</ul>"
 
 
@@ -143,21 +155,24 @@ def write_report(study, outputs, path: Path, seconds: float | None = None) -> Pa
             body.append(f"<h3>{html.escape(title)}</h3>{table_html(df, pct)}")
         body += [figure_html(t, p) for t, p in o.figures]
         if o.files:
-            body.append(f'<p class="files">Machine-readable results: {html.escape(o.name)}/'
-                        + ", ".join(html.escape(f) for f in o.files) + f" ({o.seconds:.1f} s)</p>")
+            body.append(
+                f'<p class="files">Machine-readable results: {html.escape(o.name)}/'
+                + ", ".join(html.escape(f) for f in o.files)
+                + f" ({o.seconds:.1f} s)</p>"
+            )
         secs.append(f"<section>{''.join(body)}</section>")
     when = time.strftime("%Y-%m-%d %H:%M")
     doc = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
 <title>wallcal report: {html.escape(study.name)}</title><style>{CSS}</style></head>
-<body><header><h1>{html.escape(study.name or 'wallcal study')}</h1>
+<body><header><h1>{html.escape(study.name or "wallcal study")}</h1>
 <p>{html.escape(study.description)}</p>
-<p>wallcal {html.escape(__version__)} &middot; {when} &middot; study {html.escape(str(study.path or ''))}
+<p>wallcal {html.escape(__version__)} &middot; {when} &middot; study {html.escape(str(study.path or ""))}
 (sha256 {html.escape(study.sha256[:12])})
-{f'&middot; {seconds:.0f} s' if seconds is not None else ''}</p></header>
+{f"&middot; {seconds:.0f} s" if seconds is not None else ""}</p></header>
 <main><nav>{nav}</nav>
 <section id="summary"><h2>Summary</h2>{_summary(study, outputs)}</section>
-{''.join(secs)}
+{"".join(secs)}
 </main></body></html>
 """
     Path(path).write_text(doc, encoding="utf-8")

@@ -70,13 +70,20 @@ class Prepared:
         """The same data with another wall (same layer structure); hidden flux probes are kept."""
         names = {p.name for p in wall.probes}
         hidden = tuple(p for p in self.inp.wall.probes if p.name.startswith("__") and p.name not in names)
-        return dataclasses.replace(self, inp=dataclasses.replace(self.inp, wall=wall.replace(
-            probes=wall.probes + hidden)))
+        return dataclasses.replace(
+            self, inp=dataclasses.replace(self.inp, wall=wall.replace(probes=wall.probes + hidden))
+        )
 
 
-def prepare(study: Study, engine: str | None = None, *, time_step: float | None = None,
-            grid_constant: float | None = None, node_rule: str | None = None,
-            measurements: Measurements | None = None) -> Prepared:
+def prepare(
+    study: Study,
+    engine: str | None = None,
+    *,
+    time_step: float | None = None,
+    grid_constant: float | None = None,
+    node_rule: str | None = None,
+    measurements: Measurements | None = None,
+) -> Prepared:
     """Put a study's data onto the engine grid.
 
     Parameters
@@ -108,8 +115,12 @@ def prepare(study: Study, engine: str | None = None, *, time_step: float | None 
     start, end = pd.Timestamp(p.start), pd.Timestamp(p.end)
     n_steps = int(math.ceil((end - t0).total_seconds() / dt - 1e-9))
     if n_steps > MAX_STEPS:
-        raise StudyError([f"simulation.time_step: {dt:g} s gives {n_steps:,} steps from {t0} to {end}, more than "
-                          f"{MAX_STEPS:,}; use a larger time step or a shorter period"])
+        raise StudyError(
+            [
+                f"simulation.time_step: {dt:g} s gives {n_steps:,} steps from {t0} to {end}, more than "
+                f"{MAX_STEPS:,}; use a larger time step or a shorter period"
+            ]
+        )
     grid_s = np.arange(n_steps + 1) * dt
     t_s = (frame.index - t0).total_seconds().to_numpy()
 
@@ -129,14 +140,24 @@ def prepare(study: Study, engine: str | None = None, *, time_step: float | None 
     wall = study.wall
     for s in study.sensors:  # a heat flux inside the wall is read from three hidden probes around its depth
         if s.quantity == "heat_flux" and s.depth is not None:
-            extra = tuple(Probe(n, d) for n, d in zip(flux_probe_names(s.name), flux_probe_depths(wall, s.depth),
-                                                       strict=True))
+            extra = tuple(
+                Probe(n, d) for n, d in zip(flux_probe_names(s.name), flux_probe_depths(wall, s.depth), strict=True)
+            )
             wall = wall.replace(probes=wall.probes + extra)
             probes += tuple(p.name for p in extra)
     inp = SimulationInput(
-        wall=wall, t0=t0, time_step=dt, exterior=ext, interior=intr, output_positions=positions,
-        probes=probes, flux_faces=faces, grid_constant=C, node_rule=node_rule or sim.node_rule,
-        scheme=scheme_of(engine), options={"stiff_limit": sim.stiff_limit},
+        wall=wall,
+        t0=t0,
+        time_step=dt,
+        exterior=ext,
+        interior=intr,
+        output_positions=positions,
+        probes=probes,
+        flux_faces=faces,
+        grid_constant=C,
+        node_rule=node_rule or sim.node_rule,
+        scheme=scheme_of(engine),
+        options={"stiff_limit": sim.stiff_limit},
     )
     return Prepared(study=study, measurements=meas, inp=inp, times=times, measured=measured, engine_name=engine)
 
@@ -200,9 +221,13 @@ def manifest_of(study: Study, command: str) -> dict:
         data_hash = data_sha256(study)
     except OSError:
         data_hash = None
-    return {"command": command, "study_file": str(study.path) if study.path else None,
-            "study_sha256": study.sha256, "data_files": [str(p) for p in study.data.paths],
-            "data_sha256": data_hash}
+    return {
+        "command": command,
+        "study_file": str(study.path) if study.path else None,
+        "study_sha256": study.sha256,
+        "data_files": [str(p) for p in study.data.paths],
+        "data_sha256": data_hash,
+    }
 
 
 def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> SimulationResult:
@@ -223,19 +248,29 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     excluded = {s.name: int(prep.measured[s.name].isna().sum()) for s in study.sensors}
     summ = summarize(_boundary_named(prep.measurements.frame, study), study.period.start, study.period.end)
     info = dict(out.info)
-    info.update({
-        "engine": engine,
-        "time_step_s": prep.inp.time_step,
-        "grid_constant": prep.inp.grid_constant,
-        "comparison_samples": len(prep.times),
-        "skipped_samples": excluded,
-        "spikes_found": int(len(prep.measurements.spikes)),
-        "spikes_removed": bool(study.data.remove_spikes),
-        "bridged_gaps": int(len(prep.measurements.bridged_gaps)),
-    })
-    return SimulationResult(study=study, engine=engine, measured=prep.measured.copy(), simulated=simulated,
-                            metrics=met, summary=summ, info=info, spikes=prep.measurements.spikes,
-                            bridged_gaps=prep.measurements.bridged_gaps)
+    info.update(
+        {
+            "engine": engine,
+            "time_step_s": prep.inp.time_step,
+            "grid_constant": prep.inp.grid_constant,
+            "comparison_samples": len(prep.times),
+            "skipped_samples": excluded,
+            "spikes_found": int(len(prep.measurements.spikes)),
+            "spikes_removed": bool(study.data.remove_spikes),
+            "bridged_gaps": int(len(prep.measurements.bridged_gaps)),
+        }
+    )
+    return SimulationResult(
+        study=study,
+        engine=engine,
+        measured=prep.measured.copy(),
+        simulated=simulated,
+        metrics=met,
+        summary=summ,
+        info=info,
+        spikes=prep.measurements.spikes,
+        bridged_gaps=prep.measurements.bridged_gaps,
+    )
 
 
 #: Half-distance [m] of the hidden probes that read a heat flux inside the wall
@@ -311,9 +346,16 @@ def _boundary_named(frame: pd.DataFrame, study: Study) -> pd.DataFrame:
     return frame.rename(columns=names)
 
 
-def simulate(study: Study, engine: str | None = None, *, time_step: float | None = None,
-             grid_constant: float | None = None, node_rule: str | None = None,
-             wall=None, prepared: Prepared | None = None) -> SimulationResult:
+def simulate(
+    study: Study,
+    engine: str | None = None,
+    *,
+    time_step: float | None = None,
+    grid_constant: float | None = None,
+    node_rule: str | None = None,
+    wall=None,
+    prepared: Prepared | None = None,
+) -> SimulationResult:
     """Simulate a study and compare with the measurements.
 
     Parameters
@@ -338,8 +380,7 @@ def simulate(study: Study, engine: str | None = None, *, time_step: float | None
     SimulationResult
     """
     engine = engine or study.simulation.engine
-    prep = prepared or prepare(study, engine, time_step=time_step, grid_constant=grid_constant,
-                               node_rule=node_rule)
+    prep = prepared or prepare(study, engine, time_step=time_step, grid_constant=grid_constant, node_rule=node_rule)
     if wall is not None:
         prep = prep.with_wall(wall)
     eng = get_engine(engine)

@@ -218,8 +218,7 @@ class _Table:
             self.problems.add(self._p(key), f"must be a string, got {_describe(v)}")
             return None if default is _MISSING else default
         if choices is not None and v not in choices:
-            self.problems.add(self._p(key), f"must be one of {', '.join(choices)}; got {v!r}; "
-                              f"{closest(v, choices)}")
+            self.problems.add(self._p(key), f"must be one of {', '.join(choices)}; got {v!r}; {closest(v, choices)}")
             return None if default is _MISSING else default
         return v
 
@@ -324,9 +323,19 @@ def _to_datetime(v, path, problems):
 
 
 # ============================================================================ the wall
-LAYER_KEYS = ("id", "material", "thickness", "conductivity", "density", "specific_heat",
-              "conductivity_temperature_coefficient", "reference_temperature", "conductivity_table",
-              "contact_resistance", "thermal_resistance")
+LAYER_KEYS = (
+    "id",
+    "material",
+    "thickness",
+    "conductivity",
+    "density",
+    "specific_heat",
+    "conductivity_temperature_coefficient",
+    "reference_temperature",
+    "conductivity_table",
+    "contact_resistance",
+    "thermal_resistance",
+)
 PROBE_KEYS = ("name", "depth", "depth_from", "side")
 WALL_KEYS = ("name", "description", "layers", "probes", "file")
 
@@ -354,23 +363,31 @@ def _parse_wall(t: _Table, problems: _Problems, base_dir: Path | None) -> Wall |
         if isinstance(lid, int) and not isinstance(lid, bool):
             lid = str(lid)
         elif not isinstance(lid, str):
-            problems.add(lt._p("id"), "required, a string such as \"3\"" if lid is None else
-                         f"must be a string, got {_describe(lid)}")
+            problems.add(
+                lt._p("id"),
+                'required, a string such as "3"' if lid is None else f"must be a string, got {_describe(lid)}",
+            )
             lid = None
         if lid is not None:
             if lid in ids:
                 problems.add(lt._p("id"), f"layer id {lid!r} is used twice")
             ids.add(lid)
         massless = lt.has("thermal_resistance")
-        thickness = lt.num("thickness", 0.0 if massless else _MISSING, ge=0.0 if massless else None,
-                           gt=None if massless else 0.0)
+        thickness = lt.num(
+            "thickness", 0.0 if massless else _MISSING, ge=0.0 if massless else None, gt=None if massless else 0.0
+        )
         if thickness is not None:
             geometry_thickness += thickness  # probes are checked against every valid thickness
         kw: dict[str, Any] = {}
         if massless:
             kw["thermal_resistance"] = lt.num("thermal_resistance", gt=0.0)
-            for k in ("conductivity", "density", "specific_heat", "conductivity_table",
-                      "conductivity_temperature_coefficient"):
+            for k in (
+                "conductivity",
+                "density",
+                "specific_heat",
+                "conductivity_table",
+                "conductivity_temperature_coefficient",
+            ):
                 if lt.has(k):
                     problems.add(lt._p(k), "a no-mass layer (thermal_resistance) takes no " + k)
         else:
@@ -380,23 +397,34 @@ def _parse_wall(t: _Table, problems: _Problems, base_dir: Path | None) -> Wall |
             kw["conductivity"] = lt.num("conductivity", None if table is not None else _MISSING, gt=0.0)
             kw["density"] = lt.num("density", gt=0.0)
             kw["specific_heat"] = lt.num("specific_heat", gt=0.0)
-            kw["conductivity_temperature_coefficient"] = lt.num("conductivity_temperature_coefficient", 0.0,
-                                                                ge=-0.2, le=0.2)
+            kw["conductivity_temperature_coefficient"] = lt.num(
+                "conductivity_temperature_coefficient", 0.0, ge=-0.2, le=0.2
+            )
             kw["conductivity_table"] = table
             if table is not None and kw["conductivity_temperature_coefficient"]:
-                problems.add(lt._p("conductivity_table"),
-                             "give either conductivity_table or conductivity_temperature_coefficient, not both")
+                problems.add(
+                    lt._p("conductivity_table"),
+                    "give either conductivity_table or conductivity_temperature_coefficient, not both",
+                )
         kw["reference_temperature"] = lt.num("reference_temperature", 10.0, ge=-100.0, le=200.0)
         kw["contact_resistance"] = lt.num("contact_resistance", 0.0, ge=0.0)
         material = lt.str("material", "")
-        if None in (lid, thickness) or any(
-            kw.get(k) is None for k in ("density", "specific_heat", "thermal_resistance") if k in kw
-        ) or ("conductivity" in kw and kw["conductivity"] is None and kw.get("conductivity_table") is None):
+        if (
+            None in (lid, thickness)
+            or any(kw.get(k) is None for k in ("density", "specific_heat", "thermal_resistance") if k in kw)
+            or ("conductivity" in kw and kw["conductivity"] is None and kw.get("conductivity_table") is None)
+        ):
             continue
         if kw.get("conductivity_table") is not None and kw.get("conductivity") is None:
             kw["conductivity"] = None
-        layers.append(Layer(id=lid, thickness=thickness, material=material or "",
-                            **{k: v for k, v in kw.items() if v is not None or k == "conductivity_table"}))
+        layers.append(
+            Layer(
+                id=lid,
+                thickness=thickness,
+                material=material or "",
+                **{k: v for k, v in kw.items() if v is not None or k == "conductivity_table"},
+            )
+        )
     if t.has("layers") and isinstance(t.raw("layers"), list) and not t.raw("layers"):
         problems.add(t._p("layers"), "the wall needs at least one layer")
     total = geometry_thickness  # also counts layers dropped for another bad value: no follow-up problems
@@ -478,8 +506,9 @@ def _read_toml(path: Path) -> dict:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise StudyError([f"not valid UTF-8 text (byte {exc.start}): save the file as UTF-8"],
-                         source=str(path)) from exc
+        raise StudyError(
+            [f"not valid UTF-8 text (byte {exc.start}): save the file as UTF-8"], source=str(path)
+        ) from exc
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -489,12 +518,34 @@ def _read_toml(path: Path) -> dict:
 # ============================================================================ the study
 TOP_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation", "calibration")
 STUDY_KEYS = ("name", "description")
-DATA_KEYS = ("file", "time_column", "time_format", "start", "utc_offset", "max_gap", "separator",
-             "remove_spikes", "spike_sigma", "files")
+DATA_KEYS = (
+    "file",
+    "time_column",
+    "time_format",
+    "start",
+    "utc_offset",
+    "max_gap",
+    "separator",
+    "remove_spikes",
+    "spike_sigma",
+    "files",
+)
 DATA_FILE_KEYS = ("file", "time_column", "columns", "prefix", "separator")
 BOUNDARY_KEYS = ("type", "column", "surface_coefficient", "unit", "positive", "offset")
-SENSOR_KEYS = ("name", "column", "quantity", "face", "depth", "depth_from", "accuracy", "accuracy_relative", "unit",
-               "positive", "weight", "offset")
+SENSOR_KEYS = (
+    "name",
+    "column",
+    "quantity",
+    "face",
+    "depth",
+    "depth_from",
+    "accuracy",
+    "accuracy_relative",
+    "unit",
+    "positive",
+    "weight",
+    "offset",
+)
 PERIOD_KEYS = ("warmup_start", "start", "end")
 SIMULATION_KEYS = ("engine", "time_step", "grid_constant", "node_rule", "stiff_limit")
 
@@ -519,8 +570,10 @@ def _parse_data_files(dt_: _Table, problems: _Problems, base_dir: Path | None) -
             if ft.has("prefix"):
                 problems.add(ft.path, "give columns (a mapping) or prefix, not both")
             if not isinstance(cols, dict) or not cols:
-                problems.add(ft._p("columns"), "must be a non-empty table { name_in_study = \"column_in_file\" }, "
-                             f"got {_describe(cols)}")
+                problems.add(
+                    ft._p("columns"),
+                    f'must be a non-empty table {{ name_in_study = "column_in_file" }}, got {_describe(cols)}',
+                )
             else:
                 pairs = []
                 for k, v in cols.items():
@@ -538,8 +591,15 @@ def _parse_data_files(dt_: _Table, problems: _Problems, base_dir: Path | None) -
                 columns = tuple(pairs)
         if fname is None or time_col is None:
             continue
-        out.append(DataFileSpec(file=(base_dir / fname) if base_dir else Path(fname), time_column=time_col,
-                                columns=columns, prefix=prefix or "", separator=sep))
+        out.append(
+            DataFileSpec(
+                file=(base_dir / fname) if base_dir else Path(fname),
+                time_column=time_col,
+                columns=columns,
+                prefix=prefix or "",
+                separator=sep,
+            )
+        )
     return tuple(out)
 
 
@@ -592,14 +652,14 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         time_format = dt_.str("time_format", "iso", choices=TIME_FORMATS)
         start = dt_.datetime("start", None)
         if time_format == "elapsed_seconds" and start is None and dt_.ok:
-            problems.add(dt_._p("start"), "required with time_format = \"elapsed_seconds\" (the date-time of t = 0)")
+            problems.add(dt_._p("start"), 'required with time_format = "elapsed_seconds" (the date-time of t = 0)')
         sep = dt_.str("separator", None)
         utc_offset = dt_.str("utc_offset", None)
         if utc_offset is not None:
             try:
                 _dt.datetime.strptime(utc_offset.replace("Z", "+00:00"), "%z")
             except ValueError:
-                problems.add(dt_._p("utc_offset"), f"must look like \"+01:00\", got {utc_offset!r}")
+                problems.add(dt_._p("utc_offset"), f'must look like "+01:00", got {utc_offset!r}')
         if files:
             data_file = files[0].file.parent
         else:
@@ -630,7 +690,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             if btype == "air_temperature":
                 h = ft.num("surface_coefficient", gt=0.0)
             elif ft.has("surface_coefficient"):
-                problems.add(ft._p("surface_coefficient"), f"only for type = \"air_temperature\", not {btype!r}")
+                problems.add(ft._p("surface_coefficient"), f'only for type = "air_temperature", not {btype!r}')
             if btype == "heat_flux":
                 unit = ft.str("unit", "W/m2", choices=("W/m2",))
                 if ft.has("unit") and unit is None:
@@ -639,15 +699,24 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
                 unit = ft.str("unit", "degC", choices=TEMPERATURE_UNITS)
             positive = ft.str("positive", "towards_interior", choices=FLUX_DIRECTIONS)
             if ft.has("positive") and btype != "heat_flux":
-                problems.add(ft._p("positive"), "only for type = \"heat_flux\"")
+                problems.add(ft._p("positive"), 'only for type = "heat_flux"')
             offset = ft.num("offset", 0.0, ge=-1e6, le=1e6)
             if btype and col:
-                bounds[face] = BoundarySpec(face=face, type=btype, column=col, surface_coefficient=h,
-                                            unit=unit or "degC", positive=positive or "towards_interior",
-                                            offset=offset or 0.0)
+                bounds[face] = BoundarySpec(
+                    face=face,
+                    type=btype,
+                    column=col,
+                    surface_coefficient=h,
+                    unit=unit or "degC",
+                    positive=positive or "towards_interior",
+                    offset=offset or 0.0,
+                )
         if all(b is not None and b.type == "heat_flux" for b in bounds.values()):
-            problems.add("boundary", "heat-flux boundaries on both faces leave the temperature level undetermined: "
-                         "impose a temperature on at least one face")
+            problems.add(
+                "boundary",
+                "heat-flux boundaries on both faces leave the temperature level undetermined: "
+                "impose a temperature on at least one face",
+            )
 
     sensors: list[SensorSpec] = []
     sensor_names: set[str] = set()
@@ -672,14 +741,19 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
                     problems.add(sn.path, "give face (a heat flux at a face) or depth (inside the wall), not both")
                 elif depth is not None and wall is not None:
                     if not 0.0 < depth < wall.thickness:
-                        problems.add(sn._p("depth"), f"must be inside the wall (0 < depth < {wall.thickness:g} m); "
-                                     "for a face, give face = \"exterior\" or \"interior\"")
+                        problems.add(
+                            sn._p("depth"),
+                            f"must be inside the wall (0 < depth < {wall.thickness:g} m); "
+                            'for a face, give face = "exterior" or "interior"',
+                        )
                         depth = None
                     elif depth_from == "interior":
                         depth = wall.thickness - depth
             elif face is None and sn.ok and not sn.has("face"):
-                problems.add(sn._p("face"), "required for a heat_flux sensor: \"exterior\" or \"interior\" "
-                             "(or a depth inside the wall)")
+                problems.add(
+                    sn._p("face"),
+                    'required for a heat_flux sensor: "exterior" or "interior" (or a depth inside the wall)',
+                )
         else:
             if sn.has("depth") or sn.has("depth_from"):
                 problems.add(sn._p("depth"), "only for heat_flux sensors; a temperature sensor's depth is its probe's")
@@ -689,8 +763,11 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             if sn.has("positive"):
                 problems.add(sn._p("positive"), "only for heat_flux sensors")
             if sname is not None and wall is not None and sname not in probe_names:
-                problems.add(sn._p("name"), f"{sname!r} is not a probe of the wall; "
-                             f"{closest(sname, sorted(probe_names)) if probe_names else 'the wall has no probes'}")
+                problems.add(
+                    sn._p("name"),
+                    f"{sname!r} is not a probe of the wall; "
+                    f"{closest(sname, sorted(probe_names)) if probe_names else 'the wall has no probes'}",
+                )
         if acc is not None and accr is not None:
             problems.add(sn.path, "give accuracy or accuracy_relative, not both")
         if sname is not None:
@@ -698,10 +775,21 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
                 problems.add(sn._p("name"), f"sensor {sname!r} is defined twice")
             sensor_names.add(sname)
         if sname and col and quantity:
-            sensors.append(SensorSpec(name=sname, column=col, quantity=quantity, face=face, depth=depth, accuracy=acc,
-                                      accuracy_relative=accr, unit=unit or "degC",
-                                      positive=positive or "towards_interior", weight=weight,
-                                      offset=offset or 0.0))
+            sensors.append(
+                SensorSpec(
+                    name=sname,
+                    column=col,
+                    quantity=quantity,
+                    face=face,
+                    depth=depth,
+                    accuracy=acc,
+                    accuracy_relative=accr,
+                    unit=unit or "degC",
+                    positive=positive or "towards_interior",
+                    weight=weight,
+                    offset=offset or 0.0,
+                )
+            )
     if top.has("sensors") and isinstance(top.raw("sensors"), list) and not top.raw("sensors"):
         problems.add("sensors", "list at least one sensor to compare with")
 
@@ -714,8 +802,9 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         if start and end and not end > start:
             problems.add("period.end", f"must be after period.start ({start.isoformat()}), got {end.isoformat()}")
         if warm and start and warm > start:
-            problems.add("period.warmup_start", f"must not be after period.start ({start.isoformat()}), "
-                         f"got {warm.isoformat()}")
+            problems.add(
+                "period.warmup_start", f"must not be after period.start ({start.isoformat()}), got {warm.isoformat()}"
+            )
         if start and end:
             period = PeriodSpec(warmup_start=warm, start=start, end=end)
 
@@ -739,9 +828,17 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
     if wall is None or data is None or period is None or None in bounds.values():
         raise StudyError(["the study is incomplete (wall, data, boundary or period missing)"], source=source)
     study = Study(
-        name=name, description=desc, wall=wall, data=data, exterior=bounds["exterior"],
-        interior=bounds["interior"], sensors=tuple(sensors), period=period, simulation=sim,
-        calibration=calib, raw=raw,
+        name=name,
+        description=desc,
+        wall=wall,
+        data=data,
+        exterior=bounds["exterior"],
+        interior=bounds["interior"],
+        sensors=tuple(sensors),
+        period=period,
+        simulation=sim,
+        calibration=calib,
+        raw=raw,
     )
     return study
 

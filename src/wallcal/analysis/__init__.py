@@ -50,8 +50,9 @@ def load_optimum(space, from_dir) -> np.ndarray:
     got = {p["name"]: float(p["optimum"]) for p in data.get("parameters", [])}
     missing = [n for n in space.names if n not in got]
     if missing:
-        raise WallcalError(f"{path}: made with another parameter space (missing {', '.join(missing)}); "
-                           "calibrate this study again")
+        raise WallcalError(
+            f"{path}: made with another parameter space (missing {', '.join(missing)}); calibrate this study again"
+        )
     return np.array([got[n] for n in space.names])
 
 

@@ -60,8 +60,14 @@ class GridStudyResult:
         fin = t[(t.time_step == self.finest[0]) & (t.grid_constant == self.finest[1])].set_index("target")["rmse"]
         t["diff"] = (t["rmse"] - t["target"].map(fin)).abs()
         g = t.groupby(["time_step", "grid_constant"])
-        out = pd.DataFrame({"max |dRMSE|": g["diff"].max(), "max deviation": g["deviation"].max(),
-                            "nodes": g["nodes"].first(), "seconds": g["seconds"].first()})
+        out = pd.DataFrame(
+            {
+                "max |dRMSE|": g["diff"].max(),
+                "max deviation": g["deviation"].max(),
+                "nodes": g["nodes"].first(),
+                "seconds": g["seconds"].first(),
+            }
+        )
         spread = t.groupby(["time_step", "target"])["rmse"].agg(lambda s: s.max() - s.min()).groupby("time_step").max()
         out["spread over C"] = out.index.get_level_values("time_step").map(spread)
         out["within tolerance"] = out["max |dRMSE|"] <= self.tolerance
@@ -70,26 +76,39 @@ class GridStudyResult:
     def summary(self) -> str:
         conv = self.convergence()
         spread = conv.groupby(level="time_step")["spread over C"].first()
-        lines = [f"finest setting dt = {self.finest[0]:g} s, C = {self.finest[1]:g}; tolerance {self.tolerance:g} "
-                 "(|RMSE - finest RMSE|, target units)"]
+        lines = [
+            f"finest setting dt = {self.finest[0]:g} s, C = {self.finest[1]:g}; tolerance {self.tolerance:g} "
+            "(|RMSE - finest RMSE|, target units)"
+        ]
         if self.recommended:
-            lines.append(f"coarsest (cheapest) setting within tolerance for every target: dt = "
-                         f"{self.recommended[0]:g} s, C = {self.recommended[1]:g}")
+            lines.append(
+                f"coarsest (cheapest) setting within tolerance for every target: dt = "
+                f"{self.recommended[0]:g} s, C = {self.recommended[1]:g}"
+            )
         else:
             lines.append("no setting other than the finest is within tolerance")
         dts = spread.index.to_numpy()
-        lines.append("spread of the RMSE over C at each time step (largest over targets): "
-                     + ", ".join(f"{dt:g} s: {v:.3g}" for dt, v in zip(dts, spread.to_numpy(), strict=True)))
+        lines.append(
+            "spread of the RMSE over C at each time step (largest over targets): "
+            + ", ".join(f"{dt:g} s: {v:.3g}" for dt, v in zip(dts, spread.to_numpy(), strict=True))
+        )
         if len(dts) > 1:
             trend = "converge" if spread.iloc[0] < spread.iloc[-1] else "do not converge"
-            lines.append(f"the curves for the different C {trend} as the time step goes to "
-                         f"{dts[0]:g} s (the paper's Fig. 4 finding)")
+            lines.append(
+                f"the curves for the different C {trend} as the time step goes to "
+                f"{dts[0]:g} s (the paper's Fig. 4 finding)"
+            )
         return "\n".join(lines)
 
     def to_json(self) -> dict:
-        return {"targets": self.targets, "tolerance": self.tolerance, "finest": list(self.finest),
-                "recommended": list(self.recommended) if self.recommended else None, "units": self.units,
-                "summary": self.summary()}
+        return {
+            "targets": self.targets,
+            "tolerance": self.tolerance,
+            "finest": list(self.finest),
+            "recommended": list(self.recommended) if self.recommended else None,
+            "units": self.units,
+            "summary": self.summary(),
+        }
 
     def write_into(self, d: Path) -> None:
         d = Path(d)
@@ -102,9 +121,17 @@ class GridStudyResult:
         plot_grid_study(self, d / "grid_study.png")
 
 
-def grid_study(study, time_steps=DEFAULT_TIME_STEPS, grid_constants=DEFAULT_GRID_CONSTANTS, *, targets=None,
-               tolerance: float = DEFAULT_TOLERANCE, engine: str | None = None, wall=None,
-               progress: bool = True) -> GridStudyResult:
+def grid_study(
+    study,
+    time_steps=DEFAULT_TIME_STEPS,
+    grid_constants=DEFAULT_GRID_CONSTANTS,
+    *,
+    targets=None,
+    tolerance: float = DEFAULT_TOLERANCE,
+    engine: str | None = None,
+    wall=None,
+    progress: bool = True,
+) -> GridStudyResult:
     """RMSE of each target against the time step for each grid constant.
 
     Parameters
@@ -160,17 +187,34 @@ def grid_study(study, time_steps=DEFAULT_TIME_STEPS, grid_constants=DEFAULT_GRID
         met = res.metrics.set_index("signal")
         series[(dt, C)] = res.simulated
         for t in targets:
-            rows.append({"time_step": dt, "grid_constant": C, "target": t, "rmse": float(met.loc[t, "rmse"]),
-                         "nodes": int(res.info.get("nodes", 0) or 0), "seconds": sec})
+            rows.append(
+                {
+                    "time_step": dt,
+                    "grid_constant": C,
+                    "target": t,
+                    "rmse": float(met.loc[t, "rmse"]),
+                    "nodes": int(res.info.get("nodes", 0) or 0),
+                    "seconds": sec,
+                }
+            )
     prog.close(f"{len(settings)} settings simulated")
     finest = (time_steps[0], grid_constants[0])
     ref = series[finest]
     table = pd.DataFrame(rows)
-    table["deviation"] = [float(np.sqrt(np.nanmean((series[(r.time_step, r.grid_constant)][r.target]
-                                                      - ref[r.target]) ** 2))) for r in table.itertuples()]
+    table["deviation"] = [
+        float(np.sqrt(np.nanmean((series[(r.time_step, r.grid_constant)][r.target] - ref[r.target]) ** 2)))
+        for r in table.itertuples()
+    ]
     units = {t: ("W/m2" if study.sensor(t).quantity == "heat_flux" else "degC") for t in targets}
-    out = GridStudyResult(study=study, table=table, targets=targets, tolerance=float(tolerance), finest=finest,
-                          recommended=None, units=units)
+    out = GridStudyResult(
+        study=study,
+        table=table,
+        targets=targets,
+        tolerance=float(tolerance),
+        finest=finest,
+        recommended=None,
+        units=units,
+    )
     conv = out.convergence()
     ok = conv[conv["within tolerance"]].copy()
     if len(ok):

@@ -40,8 +40,14 @@ RTOL = 1e-6
 IDENTIFIED_RATIO = 0.5
 WEAK_RATIO = 0.9
 
-_SYMBOL = {"conductivity": "lambda", "density": "rho", "specific_heat": "c", "contact_resistance": "Rc",
-           "conductivity_temperature_coefficient": "fT", "depth": "depth"}
+_SYMBOL = {
+    "conductivity": "lambda",
+    "density": "rho",
+    "specific_heat": "c",
+    "contact_resistance": "Rc",
+    "conductivity_temperature_coefficient": "fT",
+    "depth": "depth",
+}
 
 
 def verdict(ratio: float) -> str:
@@ -107,8 +113,14 @@ def structural_directions(space, wall, with_flux: bool = False) -> list[tuple[st
             d = np.zeros(space.n)
             d[props["density"]], d[props["specific_heat"]] = 1.0, -1.0
             lab = group_label(wall, layers)
-            out.append((f"rho_c[{lab}]", f"layer {lab}: density and specific heat act only through their product "
-                        f"rho*c (raising one and lowering the other changes nothing)", d / np.linalg.norm(d)))
+            out.append(
+                (
+                    f"rho_c[{lab}]",
+                    f"layer {lab}: density and specific heat act only through their product "
+                    f"rho*c (raising one and lowering the other changes nothing)",
+                    d / np.linalg.norm(d),
+                )
+            )
     if with_flux:
         return out
     # common scale of every lambda and every rho*c (needs every massive layer's lambda and rho*c free)
@@ -127,10 +139,15 @@ def structural_directions(space, wall, with_flux: bool = False) -> list[tuple[st
             d[props["contact_resistance"]] = -1.0
     massive = {i for i, layer in enumerate(wall.layers) if not layer.is_massless}
     if massive <= covered_l and massive <= covered_c:
-        out.append(("common_scale", "multiplying every conductivity and every volumetric heat capacity rho*c by one "
-                    "common factor leaves every temperature unchanged (both faces imposed): temperatures fix "
-                    "only conductivity ratios and diffusivities, never absolute conductivities",
-                    d / np.linalg.norm(d)))
+        out.append(
+            (
+                "common_scale",
+                "multiplying every conductivity and every volumetric heat capacity rho*c by one "
+                "common factor leaves every temperature unchanged (both faces imposed): temperatures fix "
+                "only conductivity ratios and diffusivities, never absolute conductivities",
+                d / np.linalg.norm(d),
+            )
+        )
     return out
 
 
@@ -156,8 +173,11 @@ def combinations(space, wall, x0) -> list[tuple[str, np.ndarray]]:
     group's conductivity and rho*c; and the total thermal resistance of the layers.
     """
     lg = log_coordinates(space)
-    groups = [(layers, props) for layers, props in _groups(space, wall).items()
-              if "conductivity" in props and lg[props["conductivity"]]]
+    groups = [
+        (layers, props)
+        for layers, props in _groups(space, wall).items()
+        if "conductivity" in props and lg[props["conductivity"]]
+    ]
     out = []
     ref = groups[0] if groups else None
     for layers, props in groups:
@@ -186,8 +206,14 @@ def combinations(space, wall, x0) -> list[tuple[str, np.ndarray]]:
                 out.append((f"(rho c)[{lab}]/(rho c)[{group_label(wall, ref[0])}]", rc))
     # total resistance of the layers: d log R_tot / d log lambda_i = -R_i / R_tot
     w = space.wall_at(wall, x0)
-    R = np.array([layer.thickness / layer.conductivity if not layer.is_massless and layer.conductivity else
-                  (getattr(layer, "resistance", 0.0) or 0.0) for layer in w.layers])
+    R = np.array(
+        [
+            layer.thickness / layer.conductivity
+            if not layer.is_massless and layer.conductivity
+            else (getattr(layer, "resistance", 0.0) or 0.0)
+            for layer in w.layers
+        ]
+    )
     if R.sum() > 0 and groups:
         g = np.zeros(space.n)
         for layers, props in groups:
@@ -253,22 +279,38 @@ class IdentifiabilityResult:
     def comparison(self) -> pd.DataFrame:
         rows = []
         for a in self.analyses:
-            rows.append({"targets": "+".join(a.targets), "rank": f"{a.rank} of {a.n}",
-                         "smallest s/s_max": a.smallest_nonzero,
-                         "flat directions": len(a.flat),
-                         "common scale gain": a.scale_gain if a.scale_gain is not None else np.nan,
-                         "sd of common scale %": (100.0 / a.scale_gain if a.scale_gain else np.inf)
-                         if a.scale_gain is not None else np.nan,
-                         "identified params": int((a.parameters["verdict"] == "identified").sum())})
+            rows.append(
+                {
+                    "targets": "+".join(a.targets),
+                    "rank": f"{a.rank} of {a.n}",
+                    "smallest s/s_max": a.smallest_nonzero,
+                    "flat directions": len(a.flat),
+                    "common scale gain": a.scale_gain if a.scale_gain is not None else np.nan,
+                    "sd of common scale %": (100.0 / a.scale_gain if a.scale_gain else np.inf)
+                    if a.scale_gain is not None
+                    else np.nan,
+                    "identified params": int((a.parameters["verdict"] == "identified").sum()),
+                }
+            )
         return pd.DataFrame(rows).set_index("targets")
 
     def to_json(self) -> dict:
         return {
-            "at": self.at, "x0": dict(zip(self.space.names, map(float, self.x0), strict=True)),
-            "analyses": [{"targets": list(a.targets), "rank": a.rank, "n": a.n, "sigma": a.sigma, "phi": a.phi,
-                          "singular_values": a.singular["s"].tolist(),
-                          "flat_directions": a.flat.reset_index().to_dict(orient="records"),
-                          "common_scale_gain": a.scale_gain} for a in self.analyses],
+            "at": self.at,
+            "x0": dict(zip(self.space.names, map(float, self.x0), strict=True)),
+            "analyses": [
+                {
+                    "targets": list(a.targets),
+                    "rank": a.rank,
+                    "n": a.n,
+                    "sigma": a.sigma,
+                    "phi": a.phi,
+                    "singular_values": a.singular["s"].tolist(),
+                    "flat_directions": a.flat.reset_index().to_dict(orient="records"),
+                    "common_scale_gain": a.scale_gain,
+                }
+                for a in self.analyses
+            ],
             "notes": self.notes,
         }
 
@@ -303,8 +345,17 @@ def sensor_sigma(study, name: str, y: np.ndarray) -> float:
     return float("nan")
 
 
-def identifiability(study, *, x0=None, at: str = "base case", targets=None, add_fluxes: bool = True,
-                    sigma: str = "accuracy", h: float = 1e-3, prepared=None) -> IdentifiabilityResult:
+def identifiability(
+    study,
+    *,
+    x0=None,
+    at: str = "base case",
+    targets=None,
+    add_fluxes: bool = True,
+    sigma: str = "accuracy",
+    h: float = 1e-3,
+    prepared=None,
+) -> IdentifiabilityResult:
     """Local identifiability of the calibration parameters at ``x0``.
 
     Parameters
@@ -349,14 +400,14 @@ def identifiability(study, *, x0=None, at: str = "base case", targets=None, add_
     Zp = z0[None] + h * np.eye(n)
     Zm = z0[None] - h * np.eye(n)
     E = ev.errors(np.vstack([x0[None], from_z(space, Zp), from_z(space, Zm)]))  # one batch, 2n+1 runs
-    D = (E[1:n + 1] - E[n + 1:]) / (2 * h)
+    D = (E[1 : n + 1] - E[n + 1 :]) / (2 * h)
     sig, phi, blocks = {}, {}, {}
     for k, name in enumerate(union):
         m = ev.mask[k]
         e0 = E[0, k][m]
         phi[name] = _phi(e0)
         y = ev.y[k][m]
-        sig[name] = float(np.sqrt(np.mean(e0 ** 2))) if sigma == "residual" else sensor_sigma(study, name, y)
+        sig[name] = float(np.sqrt(np.mean(e0**2))) if sigma == "residual" else sensor_sigma(study, name, y)
         neff = (1 - phi[name]) / (1 + phi[name])
         blocks[name] = D[:, k, :][:, m].T * np.sqrt(neff) / sig[name]
     res = IdentifiabilityResult(study=study, space=space, x0=x0, at=at)
@@ -410,8 +461,13 @@ def _analyse(space, wall, x0, J, tset, with_flux, sig, phi) -> TargetAnalysis:
         rest = N - (np.array(matched).T @ (np.array(matched) @ N) if matched else 0.0)
         u, sv, _ = np.linalg.svd(rest, full_matrices=False)
         for i in np.flatnonzero(sv > 0.5):
-            flat_rows.append({"direction": f"other_{i + 1}", "in words": "unnamed flat direction: "
-                              + monomial(space, u[:, i]) + " = const", "share in null space": float(sv[i])})
+            flat_rows.append(
+                {
+                    "direction": f"other_{i + 1}",
+                    "in words": "unnamed flat direction: " + monomial(space, u[:, i]) + " = const",
+                    "share in null space": float(sv[i]),
+                }
+            )
     flat = pd.DataFrame(flat_rows, columns=["direction", "in words", "share in null space"]).set_index("direction")
     words = {tuple(np.round(d, 6)): key for key, _, d in known}
     srows = []
@@ -426,8 +482,16 @@ def _analyse(space, wall, x0, J, tset, with_flux, sig, phi) -> TargetAnalysis:
             desc = monomial(space, v)
         sd = 1.0 / s[i] if s[i] > RTOL * smax else np.inf
         pr = prior_sd_dir(v)
-        srows.append({"s": s[i], "relative": s[i] / smax, "sd_log": sd, "prior_sd": pr,
-                      "verdict": "structurally flat" if null[i] else verdict(sd / pr), "direction": desc})
+        srows.append(
+            {
+                "s": s[i],
+                "relative": s[i] / smax,
+                "sd_log": sd,
+                "prior_sd": pr,
+                "verdict": "structurally flat" if null[i] else verdict(sd / pr),
+                "direction": desc,
+            }
+        )
     singular = pd.DataFrame(srows)
     singular.index = pd.RangeIndex(1, len(s) + 1, name="k")
     del words
@@ -439,8 +503,9 @@ def _analyse(space, wall, x0, J, tset, with_flux, sig, phi) -> TargetAnalysis:
             v, sd = "not identifiable (structural)", np.inf
         else:
             v = verdict(sd / psd[j])
-        prow.append({"parameter": p.name, "value": x0[j], "null share": share, "sd_log": sd, "prior_sd": psd[j],
-                     "verdict": v})
+        prow.append(
+            {"parameter": p.name, "value": x0[j], "null share": share, "sd_log": sd, "prior_sd": psd[j], "verdict": v}
+        )
     params = pd.DataFrame(prow).set_index("parameter")
     crow = []
     for name, g in combinations(space, wall, x0):
@@ -452,8 +517,7 @@ def _analyse(space, wall, x0, J, tset, with_flux, sig, phi) -> TargetAnalysis:
             v, sd = "not identifiable (structural)", np.inf
         else:
             v = verdict(sd / pr)
-        crow.append({"combination": name, "null share": share, "sd %": 100 * sd, "prior sd %": 100 * pr,
-                     "verdict": v})
+        crow.append({"combination": name, "null share": share, "sd %": 100 * sd, "prior sd %": 100 * pr, "verdict": v})
     combos = pd.DataFrame(crow).set_index("combination")
     # how strongly the data pin the common scale (sensitivity of the scaled residuals to log k)
     scale = [d for key, _, d in structural_directions(space, wall, with_flux=False) if key == "common_scale"]
@@ -462,6 +526,15 @@ def _analyse(space, wall, x0, J, tset, with_flux, sig, phi) -> TargetAnalysis:
         d = scale[0] / np.max(np.abs(scale[0]))
         gain = float(np.linalg.norm(J @ d))
         gain = gain if gain > RTOL * smax else 0.0
-    return TargetAnalysis(targets=tuple(tset), singular=singular, flat=flat, parameters=params, combos=combos,
-                          rank=rank, n=n, sigma={t: sig[t] for t in tset}, phi={t: phi[t] for t in tset},
-                          scale_gain=gain)
+    return TargetAnalysis(
+        targets=tuple(tset),
+        singular=singular,
+        flat=flat,
+        parameters=params,
+        combos=combos,
+        rank=rank,
+        n=n,
+        sigma={t: sig[t] for t in tset},
+        phi={t: phi[t] for t in tset},
+        scale_gain=gain,
+    )

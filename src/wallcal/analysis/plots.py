@@ -25,7 +25,7 @@ def plot_grid_study(res, path):
         ax.set_title(t)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-    for ax in axes.ravel()[len(targets):]:
+    for ax in axes.ravel()[len(targets) :]:
         ax.set_visible(False)
     rec = f"; recommended dt = {res.recommended[0]:g} s, C = {res.recommended[1]:g}" if res.recommended else ""
     fig.suptitle(f"Grid sensitivity (tolerance {res.tolerance:g}{rec})")
@@ -59,8 +59,12 @@ def plot_singular_values(res, path):
     fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
     for a in res.analyses:
         s = a.singular["relative"].to_numpy()
-        ax.semilogy(np.arange(1, len(s) + 1), np.maximum(s, 1e-18), marker="o", label="+".join(a.targets)
-                    + f" (rank {a.rank}/{a.n})")
+        ax.semilogy(
+            np.arange(1, len(s) + 1),
+            np.maximum(s, 1e-18),
+            marker="o",
+            label="+".join(a.targets) + f" (rank {a.rank}/{a.n})",
+        )
     from .identifiability import RTOL
 
     ax.axhline(RTOL, color="0.4", ls="--", lw=1, label="structural threshold")

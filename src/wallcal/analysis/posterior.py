@@ -148,14 +148,19 @@ class PosteriorResult:
         return int(s.loc[sel, "inside 95%"].sum()), int(sel.sum())
 
     def report(self) -> str:
-        lines = [f"posterior ({self.status}): {self.chain.shape[1]} walkers x {self.chain.shape[0]} steps = "
-                 f"{self.evaluations} simulations in {self.seconds:.1f} s; burn-in {self.burn}, thin {self.thin}, "
-                 f"{len(self.samples)} samples",
-                 f"error model AR(1) per target + constant sensor bias integrated out, sigma {self.sigma_kind}: "
-                 + ", ".join(f"{k} sigma {self.sigma[k]:.3g} phi {self.phi[k]:.3f} (n_eff factor "
-                             f"{(1 - self.phi[k]) / (1 + self.phi[k]):.3f})" for k in self.sigma),
-                 f"acceptance fraction {self.acceptance:.2f}; integrated autocorrelation time "
-                 f"{np.nanmin(self.tau):.0f}..{np.nanmax(self.tau):.0f} steps"]
+        lines = [
+            f"posterior ({self.status}): {self.chain.shape[1]} walkers x {self.chain.shape[0]} steps = "
+            f"{self.evaluations} simulations in {self.seconds:.1f} s; burn-in {self.burn}, thin {self.thin}, "
+            f"{len(self.samples)} samples",
+            f"error model AR(1) per target + constant sensor bias integrated out, sigma {self.sigma_kind}: "
+            + ", ".join(
+                f"{k} sigma {self.sigma[k]:.3g} phi {self.phi[k]:.3f} (n_eff factor "
+                f"{(1 - self.phi[k]) / (1 + self.phi[k]):.3f})"
+                for k in self.sigma
+            ),
+            f"acceptance fraction {self.acceptance:.2f}; integrated autocorrelation time "
+            f"{np.nanmin(self.tau):.0f}..{np.nanmax(self.tau):.0f} steps",
+        ]
         lines += [f"warning: {w}" for w in self.warnings]
         if self.truth is not None:
             k, n = self.coverage()
@@ -163,13 +168,23 @@ class PosteriorResult:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
-        return {"status": self.status, "evaluations": self.evaluations, "seconds": self.seconds,
-                "walkers": self.chain.shape[1], "steps": self.chain.shape[0], "burn": self.burn, "thin": self.thin,
-                "acceptance_fraction": self.acceptance, "tau": dict(zip(self.space.names, self.tau.tolist(),
-                                                                         strict=True)),
-                "sigma": self.sigma, "phi": self.phi, "sigma_kind": self.sigma_kind, "warnings": self.warnings,
-                "coverage": list(self.coverage()) if self.truth is not None else None,
-                "summary": self.summary.reset_index().to_dict(orient="records")}
+        return {
+            "status": self.status,
+            "evaluations": self.evaluations,
+            "seconds": self.seconds,
+            "walkers": self.chain.shape[1],
+            "steps": self.chain.shape[0],
+            "burn": self.burn,
+            "thin": self.thin,
+            "acceptance_fraction": self.acceptance,
+            "tau": dict(zip(self.space.names, self.tau.tolist(), strict=True)),
+            "sigma": self.sigma,
+            "phi": self.phi,
+            "sigma_kind": self.sigma_kind,
+            "warnings": self.warnings,
+            "coverage": list(self.coverage()) if self.truth is not None else None,
+            "summary": self.summary.reset_index().to_dict(orient="records"),
+        }
 
     def write_into(self, d: Path) -> None:
         d = Path(d)
@@ -177,16 +192,26 @@ class PosteriorResult:
         self.correlation.to_csv(d / "posterior_correlation.csv", float_format="%.4f")
         self.combinations.to_csv(d / "posterior_combinations.csv", float_format="%.6g")
         self.nonunique.to_csv(d / "non_uniqueness.csv", float_format="%.6g")
-        np.savez_compressed(d / "chain.npz", chain=self.chain, log_prob=self.log_prob, names=np.array(self.space.names),
-                            lower=self.space.lower, upper=self.space.upper)
+        np.savez_compressed(
+            d / "chain.npz",
+            chain=self.chain,
+            log_prob=self.log_prob,
+            names=np.array(self.space.names),
+            lower=self.space.lower,
+            upper=self.space.upper,
+        )
         (d / "posterior.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
         from .plots import plot_corner, plot_trace
 
         comb = self.combination_samples()
         keys = [k for k in comb if k.startswith(("R[", "(rho c)["))]
         truth = self.combination_truth()
-        plot_corner(np.column_stack([comb[k] for k in keys]), keys, d / "corner.png",
-                    truth=None if truth is None else np.array([truth[k] for k in keys]))
+        plot_corner(
+            np.column_stack([comb[k] for k in keys]),
+            keys,
+            d / "corner.png",
+            truth=None if truth is None else np.array([truth[k] for k in keys]),
+        )
         plot_corner(self.samples, self.space.names, d / "corner_parameters.png", truth=self.truth)
         plot_trace(self.chain, self.space.names, d / "trace.png")
 
@@ -195,8 +220,11 @@ class PosteriorResult:
         return derived(self.space, self.study.wall, self.samples if X is None else X)
 
     def combination_truth(self):
-        return None if self.truth is None else {k: float(v[0]) for k, v in self.combination_samples(
-            self.truth[None]).items()}
+        return (
+            None
+            if self.truth is None
+            else {k: float(v[0]) for k, v in self.combination_samples(self.truth[None]).items()}
+        )
 
 
 def derived(space, wall, X) -> dict:
@@ -237,8 +265,14 @@ def _stats(samples: np.ndarray, prior: np.ndarray, truth=None) -> dict:
     lo, hi = np.percentile(samples, [2.5, 97.5])
     sd = float(np.std(samples))
     psd = float(np.std(prior))
-    row = {"mean": float(np.mean(samples)), "sd": sd, "q2.5": lo, "q97.5": hi, "sd/prior sd": sd / psd,
-           "verdict": verdict(sd / psd)}
+    row = {
+        "mean": float(np.mean(samples)),
+        "sd": sd,
+        "q2.5": lo,
+        "q97.5": hi,
+        "sd/prior sd": sd / psd,
+        "verdict": verdict(sd / psd),
+    }
     if truth is not None:
         row["truth"] = truth
         row["inside 95%"] = bool(lo <= truth <= hi) if np.isfinite(truth) else False
@@ -266,7 +300,6 @@ def initial_walkers(study, space, x_start, nw, spread, rng):
     return np.clip(U, 1e-3, 1 - 1e-3)
 
 
-
 def checkpoint_path(out_dir) -> Path | None:
     if out_dir is None:
         return None
@@ -283,10 +316,24 @@ def _save(path, chain, logp, meta):
     os.replace(tmp, path)
 
 
-def posterior(study, *, x_start=None, targets=None, sigma: str = "estimated", walkers: int | None = None,
-              steps: int = DEFAULT_STEPS, seed: int = 1, init_spread: float = 0.02, out_dir=None,
-              resume: bool = False, progress: bool = True, prepared=None, max_evaluations: int | None = None,
-              nonunique_candidates: int = 256, bias: bool = True) -> PosteriorResult:
+def posterior(
+    study,
+    *,
+    x_start=None,
+    targets=None,
+    sigma: str = "estimated",
+    walkers: int | None = None,
+    steps: int = DEFAULT_STEPS,
+    seed: int = 1,
+    init_spread: float = 0.02,
+    out_dir=None,
+    resume: bool = False,
+    progress: bool = True,
+    prepared=None,
+    max_evaluations: int | None = None,
+    nonunique_candidates: int = 256,
+    bias: bool = True,
+) -> PosteriorResult:
     """Sample the posterior of the calibration parameters.
 
     Parameters
@@ -346,14 +393,20 @@ def posterior(study, *, x_start=None, targets=None, sigma: str = "estimated", wa
         m = ev.mask[k]
         ek = np.where(m, e0[k] - e0[k][m].mean(), 0.0)  # the constant part is the sensor bias, modelled apart
         ph[t] = lag1(ek, m)
-        sig[t] = (float(np.sqrt(np.mean(ek[m] ** 2))) if sigma == "estimated"
-                  else sensor_sigma(study, t, ev.y[k][m]))
+        sig[t] = float(np.sqrt(np.mean(ek[m] ** 2))) if sigma == "estimated" else sensor_sigma(study, t, ev.y[k][m])
         tau[t] = (0.5 * sensor_sigma(study, t, ev.y[k][m])) if bias else 0.0
-    like = AR1Likelihood(ev, [sig[t] for t in space.targets], [ph[t] for t in space.targets],
-                         [tau[t] for t in space.targets])
+    like = AR1Likelihood(
+        ev, [sig[t] for t in space.targets], [ph[t] for t in space.targets], [tau[t] for t in space.targets]
+    )
     ckpt = checkpoint_path(out_dir)
-    meta = {"names": space.names, "targets": list(space.targets), "sigma": sig, "phi": ph, "walkers": nw,
-            "study_sha256": study.sha256}
+    meta = {
+        "names": space.names,
+        "targets": list(space.targets),
+        "sigma": sig,
+        "phi": ph,
+        "walkers": nw,
+        "study_sha256": study.sha256,
+    }
     rng = np.random.default_rng(seed)
     prev_chain = np.zeros((0, nw, n))
     prev_lp = np.zeros((0, nw))
@@ -367,15 +420,17 @@ def posterior(study, *, x_start=None, targets=None, sigma: str = "estimated", wa
                 raise WallcalError(f"{ckpt}: made with another {key}; run without --resume")
         prev_chain, prev_lp = data["chain"], data["log_prob"]
         sig, ph = old["sigma"], old["phi"]
-        like = AR1Likelihood(ev, [sig[t] for t in space.targets], [ph[t] for t in space.targets],
-                             [tau[t] for t in space.targets])
+        like = AR1Likelihood(
+            ev, [sig[t] for t in space.targets], [ph[t] for t in space.targets], [tau[t] for t in space.targets]
+        )
         meta.update(sigma=sig, phi=ph)
         p0 = prev_chain[-1]
         steps = max(0, steps - len(prev_chain))
     else:
         p0 = initial_walkers(study, space, x_start, nw, init_spread, rng)
-    sampler = emcee.EnsembleSampler(nw, n, like, vectorize=True,
-                                    moves=[(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)])
+    sampler = emcee.EnsembleSampler(
+        nw, n, like, vectorize=True, moves=[(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+    )
     sampler.random_state = np.random.RandomState(seed).get_state()
     prog = Progress("posterior (emcee)", enabled=progress)
     t0 = time.perf_counter()
@@ -387,11 +442,17 @@ def posterior(study, *, x_start=None, targets=None, sigma: str = "estimated", wa
             for _ in sampler.sample(p0, iterations=steps):
                 done += 1
                 if time.perf_counter() - last > 10.0:
-                    _save(ckpt, np.concatenate([prev_chain, sampler.get_chain()]),
-                          np.concatenate([prev_lp, sampler.get_log_prob()]), meta)
+                    _save(
+                        ckpt,
+                        np.concatenate([prev_chain, sampler.get_chain()]),
+                        np.concatenate([prev_lp, sampler.get_log_prob()]),
+                        meta,
+                    )
                     last = time.perf_counter()
-                prog.update(f"step {len(prev_chain) + done}/{len(prev_chain) + steps}, "
-                            f"{ev.evaluations} simulations, acceptance {np.mean(sampler.acceptance_fraction):.2f}")
+                prog.update(
+                    f"step {len(prev_chain) + done}/{len(prev_chain) + steps}, "
+                    f"{ev.evaluations} simulations, acceptance {np.mean(sampler.acceptance_fraction):.2f}"
+                )
     except KeyboardInterrupt:
         status = "interrupted"
     chain = np.concatenate([prev_chain, sampler.get_chain()]) if done else prev_chain
@@ -401,16 +462,43 @@ def posterior(study, *, x_start=None, targets=None, sigma: str = "estimated", wa
     prog.close(f"{len(chain)} steps, {ev.evaluations} simulations, {seconds:.1f} s ({status})")
     if len(chain) < 4:
         raise WallcalError("the chain is too short to summarise (interrupted at once); continue with --resume")
-    res = summarise(study, space, chain, logp, ev, sig, ph, sigma, seconds, status,
-                    acceptance=float(np.mean(sampler.acceptance_fraction)) if done else float("nan"),
-                    truth=reference_values(study, space), nonunique_candidates=nonunique_candidates, seed=seed)
+    res = summarise(
+        study,
+        space,
+        chain,
+        logp,
+        ev,
+        sig,
+        ph,
+        sigma,
+        seconds,
+        status,
+        acceptance=float(np.mean(sampler.acceptance_fraction)) if done else float("nan"),
+        truth=reference_values(study, space),
+        nonunique_candidates=nonunique_candidates,
+        seed=seed,
+    )
     if status == "complete" and ckpt is not None and ckpt.exists():
         ckpt.unlink()
     return res
 
 
-def summarise(study, space, chain, logp, ev, sig, ph, sigma_kind, seconds, status, acceptance, truth=None,
-              nonunique_candidates=256, seed=1) -> PosteriorResult:
+def summarise(
+    study,
+    space,
+    chain,
+    logp,
+    ev,
+    sig,
+    ph,
+    sigma_kind,
+    seconds,
+    status,
+    acceptance,
+    truth=None,
+    nonunique_candidates=256,
+    seed=1,
+) -> PosteriorResult:
     """Burn-in, thinning, diagnostics, per-parameter and derived summaries, non-uniqueness demonstration."""
     import emcee
 
@@ -420,8 +508,10 @@ def summarise(study, space, chain, logp, ev, sig, ph, sigma_kind, seconds, statu
     tau = np.asarray(tau, dtype=float)
     tmax = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
     if nsteps < 50 * tmax:
-        warnings.append(f"chain too short for reliable intervals: {nsteps} steps < 50 x the largest integrated "
-                        f"autocorrelation time ({tmax:.0f} steps); run longer (--steps) or --resume")
+        warnings.append(
+            f"chain too short for reliable intervals: {nsteps} steps < 50 x the largest integrated "
+            f"autocorrelation time ({tmax:.0f} steps); run longer (--steps) or --resume"
+        )
     if np.isfinite(acceptance) and not 0.1 <= acceptance <= 0.7:
         warnings.append(f"acceptance fraction {acceptance:.2f} is outside 0.1..0.7")
     burn = int(min(max(2 * tmax, nsteps // 3), nsteps // 2))
@@ -433,8 +523,12 @@ def summarise(study, space, chain, logp, ev, sig, ph, sigma_kind, seconds, statu
     prior_X = space.from_unit(prior_u)
     rows = []
     for j, p in enumerate(space.parameters):
-        r = {"parameter": p.name, **_stats(X[:, j], prior_X[:, j], None if truth is None else truth[j]),
-             "lower": p.lower, "upper": p.upper}
+        r = {
+            "parameter": p.name,
+            **_stats(X[:, j], prior_X[:, j], None if truth is None else truth[j]),
+            "lower": p.lower,
+            "upper": p.upper,
+        }
         rows.append(r)
     summary = pd.DataFrame(rows).set_index("parameter")
     # structural facts override the marginal widths: a lone rho or c is never identified (only rho*c is; its
@@ -454,8 +548,10 @@ def summarise(study, space, chain, logp, ev, sig, ph, sigma_kind, seconds, statu
     dpost = derived(space, study.wall, X)
     dprior = derived(space, study.wall, prior_X)
     dtruth = derived(space, study.wall, truth[None]) if truth is not None else None
-    crow = [{"combination": k, **_stats(dpost[k], dprior[k], None if dtruth is None else float(dtruth[k][0]))}
-            for k in dpost]
+    crow = [
+        {"combination": k, **_stats(dpost[k], dprior[k], None if dtruth is None else float(dtruth[k][0]))}
+        for k in dpost
+    ]
     comb = pd.DataFrame(crow).set_index("combination").sort_values("sd/prior sd")
     # non-uniqueness: distinct posterior sets, all RMSEs within the sensor accuracy
     pick = rng.choice(len(X), size=min(nonunique_candidates, len(X)), replace=False)
@@ -475,11 +571,29 @@ def summarise(study, space, chain, logp, ev, sig, ph, sigma_kind, seconds, statu
     for k, t in enumerate(space.targets):
         nonunique[f"RMSE {t}"] = rmse[chosen, k]
     nonunique.index = pd.Index([f"set {i + 1}" for i in range(len(chosen))], name="set")
-    return PosteriorResult(study=study, space=space, chain=chain, log_prob=logp, samples=X, summary=summary,
-                           correlation=corr, combinations=comb, nonunique=nonunique, tau=tau, acceptance=acceptance,
-                           burn=burn, thin=thin, sigma=sig, phi=ph, sigma_kind=sigma_kind,
-                           evaluations=int(chain.shape[0] * chain.shape[1]), seconds=seconds, status=status,
-                           warnings=warnings, truth=truth)
+    return PosteriorResult(
+        study=study,
+        space=space,
+        chain=chain,
+        log_prob=logp,
+        samples=X,
+        summary=summary,
+        correlation=corr,
+        combinations=comb,
+        nonunique=nonunique,
+        tau=tau,
+        acceptance=acceptance,
+        burn=burn,
+        thin=thin,
+        sigma=sig,
+        phi=ph,
+        sigma_kind=sigma_kind,
+        evaluations=int(chain.shape[0] * chain.shape[1]),
+        seconds=seconds,
+        status=status,
+        warnings=warnings,
+        truth=truth,
+    )
 
 
 nan = float("nan")

@@ -58,17 +58,25 @@ class SensitivityResult:
     notes: list = field(default_factory=list)
 
     def summary(self) -> str:
-        lines = [f"{self.method}: {self.evaluations} simulations in {self.seconds:.1f} s "
-                 f"({self.evaluations / max(self.seconds, 1e-9):.0f}/s); ranking by {self.measure} of the "
-                 f"objective ({self.objective})"]
+        lines = [
+            f"{self.method}: {self.evaluations} simulations in {self.seconds:.1f} s "
+            f"({self.evaluations / max(self.seconds, 1e-9):.0f}/s); ranking by {self.measure} of the "
+            f"objective ({self.objective})"
+        ]
         lines += self.notes
         return "\n".join(lines)
 
     def to_json(self) -> dict:
-        return {"method": self.method, "measure": self.measure, "objective": self.objective,
-                "evaluations": self.evaluations, "seconds": self.seconds, "notes": self.notes,
-                "ranking": self.ranking.reset_index().to_dict(orient="records"),
-                "by_layer": self.by_layer.reset_index().to_dict(orient="records")}
+        return {
+            "method": self.method,
+            "measure": self.measure,
+            "objective": self.objective,
+            "evaluations": self.evaluations,
+            "seconds": self.seconds,
+            "notes": self.notes,
+            "ranking": self.ranking.reset_index().to_dict(orient="records"),
+            "by_layer": self.by_layer.reset_index().to_dict(orient="records"),
+        }
 
     def write_into(self, d: Path) -> None:
         d = Path(d)
@@ -85,7 +93,7 @@ def _evaluate(ev, X, prog, chunk=1024):
     """Objective and per-target RMSE of many candidates, in engine batches of ``chunk``."""
     objs, rmses = [], []
     for i in range(0, len(X), chunk):
-        cse, rmse = ev.per_target(X[i:i + chunk])
+        cse, rmse = ev.per_target(X[i : i + chunk])
         objs.append(ev.objective_from(cse))
         rmses.append(rmse)
         prog.update(f"{min(i + chunk, len(X))}/{len(X)} simulations")
@@ -99,9 +107,20 @@ def _layer_of(space, wall, j) -> str:
     return ",".join(wall.layers[i].id for i in p.layers)
 
 
-def sensitivity(study, method: str = "oat", *, space=None, x0=None, n: int | None = None, levels: int = 4,
-                seed: int = 1, second_order: bool = False, prepared=None, progress: bool = True,
-                chunk: int = 1024) -> SensitivityResult:
+def sensitivity(
+    study,
+    method: str = "oat",
+    *,
+    space=None,
+    x0=None,
+    n: int | None = None,
+    levels: int = 4,
+    seed: int = 1,
+    second_order: bool = False,
+    prepared=None,
+    progress: bool = True,
+    chunk: int = 1024,
+) -> SensitivityResult:
     """Rank the calibration parameters by their influence on the objective.
 
     Parameters
@@ -164,8 +183,9 @@ def sensitivity(study, method: str = "oat", *, space=None, x0=None, n: int | Non
             rows.append(row)
         ranking = pd.DataFrame(rows).set_index("parameter")
         measure = "|d objective|"
-        per_target = pd.DataFrame({t: np.maximum(np.abs(ranking[f"dRMSE_{t}_lower"]),
-                                                 np.abs(ranking[f"dRMSE_{t}_upper"])) for t in targets})
+        per_target = pd.DataFrame(
+            {t: np.maximum(np.abs(ranking[f"dRMSE_{t}_lower"]), np.abs(ranking[f"dRMSE_{t}_upper"])) for t in targets}
+        )
         notes = [f"objective at the centre: {obj[0]:.6g}"]
     else:
         require("SALib", "analysis")
@@ -180,8 +200,10 @@ def sensitivity(study, method: str = "oat", *, space=None, x0=None, n: int | Non
 
             def analyze(Y):
                 a = ma.analyze(problem, X, Y, num_levels=levels, seed=seed, print_to_console=False)
-                return pd.DataFrame({"mu_star": a["mu_star"], "sigma": a["sigma"], "mu": a["mu"],
-                                     "mu_star_conf": a["mu_star_conf"]}, index=pd.Index(names, name="parameter"))
+                return pd.DataFrame(
+                    {"mu_star": a["mu_star"], "sigma": a["sigma"], "mu": a["mu"], "mu_star_conf": a["mu_star_conf"]},
+                    index=pd.Index(names, name="parameter"),
+                )
 
             measure = "mu_star"
         else:
@@ -196,8 +218,10 @@ def sensitivity(study, method: str = "oat", *, space=None, x0=None, n: int | Non
 
             def analyze(Y):
                 a = sa.analyze(problem, Y, calc_second_order=second_order, seed=seed, print_to_console=False)
-                return pd.DataFrame({"ST": a["ST"], "ST_conf": a["ST_conf"], "S1": a["S1"], "S1_conf": a["S1_conf"]},
-                                    index=pd.Index(names, name="parameter"))
+                return pd.DataFrame(
+                    {"ST": a["ST"], "ST_conf": a["ST_conf"], "S1": a["S1"], "S1_conf": a["S1_conf"]},
+                    index=pd.Index(names, name="parameter"),
+                )
 
             measure = "ST"
         ok = np.isfinite(obj)
@@ -215,21 +239,42 @@ def sensitivity(study, method: str = "oat", *, space=None, x0=None, n: int | Non
     by_layer = ranking.groupby("layer")[measure].sum().sort_values(ascending=False).to_frame()
     total = by_layer[measure].clip(lower=0).sum()
     by_layer["share"] = by_layer[measure].clip(lower=0) / total if total > 0 else np.nan
-    ins = [lab for lab in by_layer.index if not lab.startswith("probe") and all(
-        (wall.layers[[L.id for L in wall.layers].index(i)].conductivity or 1.0) < INSULATION_LAMBDA
-        for i in lab.split(","))]
+    ins = [
+        lab
+        for lab in by_layer.index
+        if not lab.startswith("probe")
+        and all(
+            (wall.layers[[L.id for L in wall.layers].index(i)].conductivity or 1.0) < INSULATION_LAMBDA
+            for i in lab.split(",")
+        )
+    ]
     by_layer["insulation"] = [lab in ins for lab in by_layer.index]
     share = float(by_layer.loc[ins, "share"].sum()) if ins else 0.0
     top = ranking.index[:3].tolist()
     notes.append(f"most influential parameters: {', '.join(top)}")
-    notes.append(f"insulation layers (lambda < {INSULATION_LAMBDA:g} W/(m K): {'; '.join(ins) or 'none'}) carry "
-                 f"{100 * share:.0f} % of the summed {measure}"
-                 + (" - the insulation layers are the most influential, as the study found" if share > 0.5 else
-                    " - not the majority: the thin massive layers' heat capacity matters here"))
+    notes.append(
+        f"insulation layers (lambda < {INSULATION_LAMBDA:g} W/(m K): {'; '.join(ins) or 'none'}) carry "
+        f"{100 * share:.0f} % of the summed {measure}"
+        + (
+            " - the insulation layers are the most influential, as the study found"
+            if share > 0.5
+            else " - not the majority: the thin massive layers' heat capacity matters here"
+        )
+    )
     if method == "sobol":
         s1 = float(ranking["S1"].clip(lower=0).sum())
-        notes.append(f"sum of S1 = {s1:.2f} (1 - sum S1 = {1 - s1:.2f} is the share of the variance due to "
-                     "interactions, e.g. the rho*c products and the lambda ratios)")
-    return SensitivityResult(method=method, ranking=ranking, measure=measure, per_target=per_target,
-                             by_layer=by_layer, evaluations=ev.evaluations, seconds=seconds,
-                             objective=space.objective, notes=notes)
+        notes.append(
+            f"sum of S1 = {s1:.2f} (1 - sum S1 = {1 - s1:.2f} is the share of the variance due to "
+            "interactions, e.g. the rho*c products and the lambda ratios)"
+        )
+    return SensitivityResult(
+        method=method,
+        ranking=ranking,
+        measure=measure,
+        per_target=per_target,
+        by_layer=by_layer,
+        evaluations=ev.evaluations,
+        seconds=seconds,
+        objective=space.objective,
+        notes=notes,
+    )

@@ -71,14 +71,20 @@ LS_DEFAULTS = {"max_nfev": 100, "diff_step": 1e-6}
 
 def settings_for(algorithm: str, user: dict) -> dict:
     """The algorithm's settings: documented defaults updated by the user's, unknown names rejected."""
-    defaults = {"pso-hj": PSO_HJ_DEFAULTS, "differential-evolution": DE_DEFAULTS, "nelder-mead": NM_DEFAULTS,
-                "cma-es": CMA_DEFAULTS, "least-squares": LS_DEFAULTS}[algorithm]
+    defaults = {
+        "pso-hj": PSO_HJ_DEFAULTS,
+        "differential-evolution": DE_DEFAULTS,
+        "nelder-mead": NM_DEFAULTS,
+        "cma-es": CMA_DEFAULTS,
+        "least-squares": LS_DEFAULTS,
+    }[algorithm]
     unknown = [k for k in user if k not in defaults]
     if unknown:
         from ..errors import closest
 
-        raise StudyError([f"calibration.settings.{k}: unknown setting for {algorithm}; {closest(k, defaults)}"
-                          for k in unknown])
+        raise StudyError(
+            [f"calibration.settings.{k}: unknown setting for {algorithm}; {closest(k, defaults)}" for k in unknown]
+        )
     out = dict(defaults)
     out.update(user)
     return out
@@ -238,8 +244,9 @@ def _reflect(x, v):
     return np.clip(x, 0.0, 1.0), v
 
 
-def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, residuals=None,
-           state: dict | None = None) -> None:
+def pso_hj(
+    rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, residuals=None, state: dict | None = None
+) -> None:
     """Particle swarm (constriction, mesh) + Hooke-Jeeves pattern search + least-squares polish.
 
     ``state`` (from a checkpoint) resumes where the run stopped.
@@ -251,8 +258,11 @@ def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, res
     cache = _Cache(rec, min(h_mesh, finest) / 4)
     npart = int(s["particles"])
     phi = float(s["cognitive"]) + float(s["social"])
-    chi = 2 * float(s["constriction_gain"]) / abs(2 - phi - math.sqrt(max(phi * phi - 4 * phi, 0.0))) \
-        if phi > 4 else float(s["constriction_gain"])
+    chi = (
+        2 * float(s["constriction_gain"]) / abs(2 - phi - math.sqrt(max(phi * phi - 4 * phi, 0.0)))
+        if phi > 4
+        else float(s["constriction_gain"])
+    )
     vmax = float(s["max_velocity"])
     nbrs = _neighbours(npart, str(s["topology"]))
 
@@ -287,8 +297,16 @@ def pso_hj(rec: Recorder, n: int, seed: int, settings: dict, u0: np.ndarray, res
             better = fx < pbest_f
             pbest[better] = xm[better]
             pbest_f[better] = fx[better]
-            rec.save({"phase": "pso", "x": x.tolist(), "v": v.tolist(), "pbest": pbest.tolist(),
-                      "pbest_f": pbest_f.tolist(), "generation": gen + 1})
+            rec.save(
+                {
+                    "phase": "pso",
+                    "x": x.tolist(),
+                    "v": v.tolist(),
+                    "pbest": pbest.tolist(),
+                    "pbest_f": pbest_f.tolist(),
+                    "generation": gen + 1,
+                }
+            )
             rng = np.random.default_rng([seed, gen + 1])
         st = {"phase": "hj", "base": rec.best_u.tolist(), "step": float(s["hj_initial_step"]), "reductions": 0}
         rec.save(st)
@@ -389,8 +407,18 @@ def least_squares_refine(rec: Recorder, residuals, u0, max_jacobians: int = 60, 
     lo = np.zeros(len(u0))
     hi = np.ones(len(u0))
     start = np.clip(np.asarray(u0, dtype=float), lo + 1e-12, hi - 1e-12)
-    least_squares(fun, start, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_jacobians,
-                  ftol=1e-12, xtol=1e-12, gtol=1e-12)
+    least_squares(
+        fun,
+        start,
+        jac=jac,
+        bounds=(lo, hi),
+        method="trf",
+        x_scale="jac",
+        max_nfev=max_jacobians,
+        ftol=1e-12,
+        xtol=1e-12,
+        gtol=1e-12,
+    )
 
 
 # ============================================================================ library algorithms
@@ -400,17 +428,37 @@ def differential_evolution(rec: Recorder, n, seed, settings, u0):
     def f(x):  # vectorized: x has shape (n, S)
         return rec(np.asarray(x).T)
 
-    de(f, bounds=[(0.0, 1.0)] * n, seed=seed, vectorized=True, updating="deferred", polish=False,
-       popsize=int(settings["popsize"]), maxiter=int(settings["maxiter"]), tol=float(settings["tol"]),
-       mutation=tuple(settings["mutation"]), recombination=float(settings["recombination"]), x0=u0)
+    de(
+        f,
+        bounds=[(0.0, 1.0)] * n,
+        seed=seed,
+        vectorized=True,
+        updating="deferred",
+        polish=False,
+        popsize=int(settings["popsize"]),
+        maxiter=int(settings["maxiter"]),
+        tol=float(settings["tol"]),
+        mutation=tuple(settings["mutation"]),
+        recombination=float(settings["recombination"]),
+        x0=u0,
+    )
 
 
 def nelder_mead(rec: Recorder, n, seed, settings, u0):
     from scipy.optimize import minimize
 
-    minimize(lambda u: float(rec(u[None])[0]), u0, method="Nelder-Mead", bounds=[(0.0, 1.0)] * n,
-             options={"maxfev": int(settings["maxfev"]), "xatol": float(settings["xatol"]),
-                      "fatol": float(settings["fatol"]), "adaptive": True})
+    minimize(
+        lambda u: float(rec(u[None])[0]),
+        u0,
+        method="Nelder-Mead",
+        bounds=[(0.0, 1.0)] * n,
+        options={
+            "maxfev": int(settings["maxfev"]),
+            "xatol": float(settings["xatol"]),
+            "fatol": float(settings["fatol"]),
+            "adaptive": True,
+        },
+    )
 
 
 def cma_es(rec: Recorder, n, seed, settings, u0):
@@ -427,5 +475,6 @@ def cma_es(rec: Recorder, n, seed, settings, u0):
 
 
 def least_squares_only(rec: Recorder, residuals, settings, u0):
-    least_squares_refine(rec, residuals, u0, max_jacobians=int(settings["max_nfev"]),
-                         diff_step=float(settings["diff_step"]))
+    least_squares_refine(
+        rec, residuals, u0, max_jacobians=int(settings["max_nfev"]), diff_step=float(settings["diff_step"])
+    )

@@ -27,7 +27,7 @@ def layer_mean_temperatures(study, measurements=None) -> dict[str, float]:
     from ..data import load_measurements
 
     meas = measurements or load_measurements(study)
-    f = meas.frame.loc[str(study.period.start):str(study.period.end)]
+    f = meas.frame.loc[str(study.period.start) : str(study.period.end)]
     depths, temps = [], []
     if study.exterior.type == "surface_temperature":
         depths.append(0.0)
@@ -47,9 +47,13 @@ def layer_mean_temperatures(study, measurements=None) -> dict[str, float]:
     return {layer.id: float(np.interp(0.5 * (x[i] + x[i + 1]), d, t)) for i, layer in enumerate(study.wall.layers)}
 
 
-def convert_conductivities(wall: Wall, temperatures: dict[str, float] | float, *,
-                           coefficients: dict[str, float] | float | None = None,
-                           layers: list[str] | None = None) -> Wall:
+def convert_conductivities(
+    wall: Wall,
+    temperatures: dict[str, float] | float,
+    *,
+    coefficients: dict[str, float] | float | None = None,
+    layers: list[str] | None = None,
+) -> Wall:
     """Conductivities converted from each layer's ``reference_temperature`` to ``temperatures``.
 
     Parameters
@@ -69,7 +73,7 @@ def convert_conductivities(wall: Wall, temperatures: dict[str, float] | float, *
         The converted conductivities now hold at the new ``reference_temperature`` of each layer.
     """
     ids = [layer.id for layer in wall.layers]
-    for lid in (layers or []):
+    for lid in layers or []:
         if lid not in ids:
             from ..errors import closest
 
@@ -87,10 +91,14 @@ def convert_conductivities(wall: Wall, temperatures: dict[str, float] | float, *
         if f == 0.0 and layers is None:
             continue
         t_new = temperatures[layer.id] if isinstance(temperatures, dict) else float(temperatures)
-        lam = convert_conductivity(layer.conductivity_at(layer.reference_temperature), layer.reference_temperature,
-                                   t_new, f)
-        out = out.replace_layer(layer.id, conductivity=float(lam), reference_temperature=float(t_new),
-                                conductivity_temperature_coefficient=layer.conductivity_temperature_coefficient,
-                                conductivity_table=None if layer.conductivity_table is None else
-                                layer.conductivity_table)
+        lam = convert_conductivity(
+            layer.conductivity_at(layer.reference_temperature), layer.reference_temperature, t_new, f
+        )
+        out = out.replace_layer(
+            layer.id,
+            conductivity=float(lam),
+            reference_temperature=float(t_new),
+            conductivity_temperature_coefficient=layer.conductivity_temperature_coefficient,
+            conductivity_table=None if layer.conductivity_table is None else layer.conductivity_table,
+        )
     return out

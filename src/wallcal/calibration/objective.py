@@ -64,8 +64,13 @@ class Evaluator:
                 halves = []
                 for a, b in ((0, 1), (1, 2)):
                     if xs[b] > xs[a]:
-                        li = int(np.clip(np.searchsorted(inp.wall.interfaces, 0.5 * (xs[a] + xs[b]), side="right")
-                                         - 1, 0, len(inp.wall.layers) - 1))
+                        li = int(
+                            np.clip(
+                                np.searchsorted(inp.wall.interfaces, 0.5 * (xs[a] + xs[b]), side="right") - 1,
+                                0,
+                                len(inp.wall.layers) - 1,
+                            )
+                        )
                         halves.append((rows3[a], rows3[b], xs[b] - xs[a], li))
                 self.depth_fluxes.append((len(self.rows), halves))
                 self.rows.append(rows3[1])  # placeholder row, replaced by the flux in simulate()

@@ -17,8 +17,9 @@ def plot_convergence(res, path):
     ax.axhline(res.f_base, color="0.5", ls="--", lw=1, label=f"base case {res.f_base:.4g}")
     ax.set_xlabel("simulations")
     ax.set_ylabel(f"objective ({res.space.objective})")
-    ax.set_title(f"{res.algorithm}: {res.f_base:.4g} -> {res.f_opt:.4g} in {res.evaluations} simulations, "
-                 f"{res.seconds:.1f} s")
+    ax.set_title(
+        f"{res.algorithm}: {res.f_base:.4g} -> {res.f_opt:.4g} in {res.evaluations} simulations, {res.seconds:.1f} s"
+    )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.savefig(path, dpi=110)
@@ -27,18 +28,29 @@ def plot_convergence(res, path):
 
 def plot_fit(res, path):
     targets = list(res.space.targets)
-    fig, axes = plt.subplots(len(targets), 1, figsize=(10, 2.6 * len(targets)), sharex=True, squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(
+        len(targets), 1, figsize=(10, 2.6 * len(targets)), sharex=True, squeeze=False, layout="constrained"
+    )
     met = res.metrics.set_index(["case", "signal"])["rmse"]
     for ax, name in zip(axes[:, 0], targets, strict=True):
         s = res.study.sensor(name)
         unit = "W/m2" if s.quantity == "heat_flux" else "degC"
         y = res.measured[name]
         ax.plot(y.index, y.to_numpy(), color="k", lw=0.8, label="measured")
-        ax.plot(y.index, res.simulated["base"][name].to_numpy(), color="tab:blue", lw=0.9,
-                label=f"base case (RMSE {met[('base', name)]:.3f})")
-        ax.plot(y.index, res.simulated["calibrated"][name].to_numpy(), color="tab:red", lw=0.9,
-                label=f"calibrated (RMSE {met[('calibrated', name)]:.3f})")
+        ax.plot(
+            y.index,
+            res.simulated["base"][name].to_numpy(),
+            color="tab:blue",
+            lw=0.9,
+            label=f"base case (RMSE {met[('base', name)]:.3f})",
+        )
+        ax.plot(
+            y.index,
+            res.simulated["calibrated"][name].to_numpy(),
+            color="tab:red",
+            lw=0.9,
+            label=f"calibrated (RMSE {met[('calibrated', name)]:.3f})",
+        )
         ax.set_ylabel(f"{name} [{unit}]")
         ax.legend(loc="upper right", fontsize=8)
         ax.grid(alpha=0.3)

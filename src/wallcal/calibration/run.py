@@ -83,10 +83,20 @@ class CalibrationResult:
     def parameter_table(self) -> pd.DataFrame:
         rows = []
         for p, xb, xo in zip(self.space.parameters, self.x_base, self.x_opt, strict=True):
-            rows.append({"parameter": p.name, "base": xb, "lower": p.lower, "upper": p.upper, "optimum": xo,
-                         "change": (xo - xb) / xb if xb else np.nan,
-                         "at_bound": bool(np.isclose(xo, p.lower, rtol=0, atol=1e-6 * p.span)
-                                          or np.isclose(xo, p.upper, rtol=0, atol=1e-6 * p.span))})
+            rows.append(
+                {
+                    "parameter": p.name,
+                    "base": xb,
+                    "lower": p.lower,
+                    "upper": p.upper,
+                    "optimum": xo,
+                    "change": (xo - xb) / xb if xb else np.nan,
+                    "at_bound": bool(
+                        np.isclose(xo, p.lower, rtol=0, atol=1e-6 * p.span)
+                        or np.isclose(xo, p.upper, rtol=0, atol=1e-6 * p.span)
+                    ),
+                }
+            )
         return pd.DataFrame(rows).set_index("parameter")
 
     def to_json(self) -> dict:
@@ -103,13 +113,21 @@ class CalibrationResult:
             "evaluations": self.evaluations,
             "wall_time_s": self.seconds,
             "parameters": [
-                {"name": p.name, "property": p.property,
-                 "layers": [self.study.wall.layers[i].id for i in p.layers], "probe": p.probe,
-                 "base": xb, "bounds": [p.lower, p.upper], "optimum": xo}
+                {
+                    "name": p.name,
+                    "property": p.property,
+                    "layers": [self.study.wall.layers[i].id for i in p.layers],
+                    "probe": p.probe,
+                    "base": xb,
+                    "bounds": [p.lower, p.upper],
+                    "optimum": xo,
+                }
                 for p, xb, xo in zip(self.space.parameters, self.x_base, self.x_opt, strict=True)
             ],
-            "rmse": {case: self.metrics[self.metrics["case"] == case].set_index("signal")["rmse"].to_dict()
-                     for case in ("base", "calibrated")},
+            "rmse": {
+                case: self.metrics[self.metrics["case"] == case].set_index("signal")["rmse"].to_dict()
+                for case in ("base", "calibrated")
+            },
             "noise_floors": self.floors,
             "notes": self.notes,
             "history": [list(h) for h in self.history],
@@ -125,8 +143,10 @@ class CalibrationResult:
         return Path(out_dir)
 
     def write_into(self, d: Path) -> None:
-        header = (f"Calibrated wall ({self.status}) from {self.study.path or 'study'}\n"
-                  f"algorithm {self.algorithm}, objective {self.space.objective} {self.f_base:.6g} -> {self.f_opt:.6g}")
+        header = (
+            f"Calibrated wall ({self.status}) from {self.study.path or 'study'}\n"
+            f"algorithm {self.algorithm}, objective {self.space.objective} {self.f_base:.6g} -> {self.f_opt:.6g}"
+        )
         (d / "calibrated_wall.toml").write_text(dump_wall(self.wall_opt, header))
         (d / "calibration.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
         self.metrics.to_csv(d / "metrics.csv", index=False, float_format="%.6g")
@@ -146,9 +166,18 @@ def _checkpoint_path(out_dir: Path | None) -> Path | None:
     return out_dir.parent / f".{out_dir.name}.checkpoint.json"
 
 
-def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | None = None, seed: int | None = None,
-              out_dir: str | Path | None = None, resume: bool = False, progress: bool = True,
-              prepared: Prepared | None = None, space: ParameterSpace | None = None) -> CalibrationResult:
+def calibrate(
+    study: Study,
+    *,
+    algorithm: str | None = None,
+    settings: dict | None = None,
+    seed: int | None = None,
+    out_dir: str | Path | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    prepared: Prepared | None = None,
+    space: ParameterSpace | None = None,
+) -> CalibrationResult:
     """Calibrate the study's wall.
 
     Parameters
@@ -195,8 +224,13 @@ def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | No
         return ev.objective_and_residuals(space.from_unit(U))
 
     ckpt = _checkpoint_path(out_dir)
-    meta = {"algorithm": algorithm, "seed": seed, "settings": sett, "parameters": space.names,
-            "study_sha256": study.sha256}
+    meta = {
+        "algorithm": algorithm,
+        "seed": seed,
+        "settings": sett,
+        "parameters": space.names,
+        "study_sha256": study.sha256,
+    }
     prog = alg.Progress(f"calibrate ({algorithm})", enabled=progress)
     rec = alg.Recorder(f=f, n=space.n, progress=prog, checkpoint=ckpt, meta=meta, autosave=algorithm != "pso-hj")
     state = None
@@ -206,8 +240,10 @@ def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | No
         data = json.loads(ckpt.read_text())
         for key in ("algorithm", "seed", "parameters", "study_sha256"):
             if data.get(key) != meta[key]:
-                raise WallcalError(f"{ckpt}: the checkpoint was made with another {key} "
-                                   f"({data.get(key)!r} != {meta[key]!r}); run without --resume")
+                raise WallcalError(
+                    f"{ckpt}: the checkpoint was made with another {key} "
+                    f"({data.get(key)!r} != {meta[key]!r}); run without --resume"
+                )
         rec.restore(data)
         state = data.get("state")
     u0 = space.to_unit(space.base)
@@ -230,8 +266,10 @@ def calibrate(study: Study, *, algorithm: str | None = None, settings: dict | No
         status = "interrupted"
         if algorithm != "pso-hj":  # pso-hj's checkpoint already holds its last complete generation
             rec.save(None)
-    prog.close(f"{rec.phase or algorithm}: {rec.evaluations} simulations, best {rec.best_f:.6g}, "
-               f"{rec.elapsed:.1f} s ({status})")
+    prog.close(
+        f"{rec.phase or algorithm}: {rec.evaluations} simulations, best {rec.best_f:.6g}, "
+        f"{rec.elapsed:.1f} s ({status})"
+    )
     x_opt = space.from_unit(rec.best_u)
     result = _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, rec, status)
     if status == "complete" and ckpt is not None and ckpt.exists():
@@ -260,12 +298,16 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
         if name in floors:
             floor = floors[name]
             if rm_opt[name] < floor - max(FLOOR_MARGIN_ABS, FLOOR_MARGIN_REL * floor):
-                notes.append(f"{name}: calibrated RMSE {rm_opt[name]:.3f} is well below its noise floor {floor:.3f} "
-                             f"(the reference wall's RMSE): the fit absorbs that sensor's bias or noise, i.e. "
-                             f"the calibrated properties compensate a measurement error")
+                notes.append(
+                    f"{name}: calibrated RMSE {rm_opt[name]:.3f} is well below its noise floor {floor:.3f} "
+                    f"(the reference wall's RMSE): the fit absorbs that sensor's bias or noise, i.e. "
+                    f"the calibrated properties compensate a measurement error"
+                )
         if rm_opt[name] > rm_base[name] * 1.001:
-            notes.append(f"{name}: RMSE rose from {rm_base[name]:.3f} to {rm_opt[name]:.3f}: the objective traded "
-                         "it against the other targets")
+            notes.append(
+                f"{name}: RMSE rose from {rm_base[name]:.3f} to {rm_opt[name]:.3f}: the objective traded "
+                "it against the other targets"
+            )
     x_base = space.base
     at_bound = []
     for p, xo in zip(space.parameters, x_opt, strict=True):
@@ -274,15 +316,33 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
         elif np.isclose(xo, p.upper, atol=1e-6 * p.span, rtol=0):
             at_bound.append(f"{p.name} (upper)")
     if at_bound:
-        notes.append(f"{len(at_bound)} of {space.n} parameters ended at a bound: {', '.join(at_bound)}. The data "
-                     "would move them further, or they are not identified from these data (several walls fit "
-                     "equally well: see wallcal posterior); review the bounds before trusting these values")
+        notes.append(
+            f"{len(at_bound)} of {space.n} parameters ended at a bound: {', '.join(at_bound)}. The data "
+            "would move them further, or they are not identified from these data (several walls fit "
+            "equally well: see wallcal posterior); review the bounds before trusting these values"
+        )
     sim = {"base": base_res.simulated, "calibrated": opt_res.simulated}
     return CalibrationResult(
-        study=study, space=space, algorithm=algorithm, settings=sett, seed=seed, x_base=x_base, x_opt=x_opt,
-        f_base=f_base, f_opt=float(rec.best_f), evaluations=rec.evaluations, seconds=rec.elapsed,
-        history=rec.history, status=status, wall_base=study.wall, wall_opt=wall_opt, metrics=met.reset_index(drop=True),
-        simulated=sim, measured=base_res.measured, floors=floors, notes=notes,
+        study=study,
+        space=space,
+        algorithm=algorithm,
+        settings=sett,
+        seed=seed,
+        x_base=x_base,
+        x_opt=x_opt,
+        f_base=f_base,
+        f_opt=float(rec.best_f),
+        evaluations=rec.evaluations,
+        seconds=rec.elapsed,
+        history=rec.history,
+        status=status,
+        wall_base=study.wall,
+        wall_opt=wall_opt,
+        metrics=met.reset_index(drop=True),
+        simulated=sim,
+        measured=base_res.measured,
+        floors=floors,
+        notes=notes,
     )
 
 

@@ -18,8 +18,13 @@ from ..grid import PropertyArrays
 from ..study import _check_number, _Problems, _Table
 from ..wall import Wall
 
-LAYER_PROPERTIES = ("conductivity", "density", "specific_heat", "conductivity_temperature_coefficient",
-                    "contact_resistance")
+LAYER_PROPERTIES = (
+    "conductivity",
+    "density",
+    "specific_heat",
+    "conductivity_temperature_coefficient",
+    "contact_resistance",
+)
 PROBE_PROPERTIES = ("depth",)
 OBJECTIVES = ("cse", "rmse_accuracy", "weighted_cse", "weighted_rmse")
 ALGORITHMS = ("pso-hj", "least-squares", "differential-evolution", "nelder-mead", "cma-es")
@@ -210,7 +215,7 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
     for pt in t.tables("parameters", PARAMETER_KEYS):
         has_layers, has_probe = pt.has("layers"), pt.has("probe")
         if has_layers == has_probe:
-            problems.add(pt.path, "give either layers = [...] or probe = \"...\"")
+            problems.add(pt.path, 'give either layers = [...] or probe = "..."')
             continue
         prop = pt.str("property", choices=PROBE_PROPERTIES if has_probe else LAYER_PROPERTIES)
         kind = pt.str("bounds_kind", "relative" if has_layers else "absolute", choices=("relative", "absolute"))
@@ -228,8 +233,7 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
         if has_probe:
             name = pt.raw("probe")
             if not isinstance(name, str) or name not in probe_names:
-                problems.add(pt._p("probe"), f"{name!r} is not a probe of the wall; "
-                             f"{closest(str(name), probe_names)}")
+                problems.add(pt._p("probe"), f"{name!r} is not a probe of the wall; {closest(str(name), probe_names)}")
                 continue
             if ("probe:" + name, prop) in used:
                 problems.add(pt._p("probe"), f"probe {name!r} {prop} is already a parameter")
@@ -248,8 +252,9 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
             idx_list = []
             for k, lid in enumerate(ids):
                 if not isinstance(lid, str) or lid not in layer_ids:
-                    problems.add(f"{pt._p('layers')}[{k}]",
-                                 f"{lid!r} is not a layer id; {closest(str(lid), layer_ids)}")
+                    problems.add(
+                        f"{pt._p('layers')}[{k}]", f"{lid!r} is not a layer id; {closest(str(lid), layer_ids)}"
+                    )
                     bad = True
                     continue
                 if (lid, prop) in used:
@@ -258,14 +263,19 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
                     continue
                 used.add((lid, prop))
                 layer = wall.layers[layer_ids.index(lid)]
-                if layer.is_massless and prop in ("conductivity", "density", "specific_heat",
-                                                  "conductivity_temperature_coefficient"):
+                if layer.is_massless and prop in (
+                    "conductivity",
+                    "density",
+                    "specific_heat",
+                    "conductivity_temperature_coefficient",
+                ):
                     problems.add(f"{pt._p('layers')}[{k}]", f"layer {lid!r} is a no-mass layer: it has no {prop}")
                     bad = True
                     continue
                 if prop == "contact_resistance" and layer_ids.index(lid) == len(layer_ids) - 1:
-                    problems.add(f"{pt._p('layers')}[{k}]", "the innermost layer has no next layer for a contact "
-                                 "resistance")
+                    problems.add(
+                        f"{pt._p('layers')}[{k}]", "the innermost layer has no next layer for a contact resistance"
+                    )
                     bad = True
                     continue
                 idx_list.append(layer_ids.index(lid))
@@ -274,23 +284,29 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
             idx = tuple(idx_list)
             values = [getattr(wall.layers[i], prop) or 0.0 for i in idx]
             if len(set(values)) > 1:
-                problems.add(pt._p("layers"), f"tied layers must share a base {prop}; got "
-                             + ", ".join(f"{wall.layers[i].id}: {v:g}" for i, v in zip(idx, values, strict=True)))
+                problems.add(
+                    pt._p("layers"),
+                    f"tied layers must share a base {prop}; got "
+                    + ", ".join(f"{wall.layers[i].id}: {v:g}" for i, v in zip(idx, values, strict=True)),
+                )
                 continue
             base = float(values[0])
             pname = f"{prop}[{','.join(wall.layers[i].id for i in idx)}]"
         if kind == "relative":
             if base == 0.0:
-                problems.add(pt._p("bounds_kind"), f"relative bounds need a non-zero base value ({pname} is 0): "
-                             "use bounds_kind = \"absolute\"")
+                problems.add(
+                    pt._p("bounds_kind"),
+                    f'relative bounds need a non-zero base value ({pname} is 0): use bounds_kind = "absolute"',
+                )
                 continue
             lower, upper = base * (1 + lo), base * (1 + hi)
             lower, upper = min(lower, upper), max(lower, upper)
         else:
             lower, upper = lo, hi
         if not lower <= base <= upper:
-            problems.add(pt._p("bounds"), f"the base value {base:g} of {pname} is outside the bounds "
-                         f"[{lower:g}, {upper:g}]")
+            problems.add(
+                pt._p("bounds"), f"the base value {base:g} of {pname} is outside the bounds [{lower:g}, {upper:g}]"
+            )
             continue
         if prop in _POSITIVE and lower <= 0:
             problems.add(pt._p("bounds"), f"{pname} must stay > 0 over the whole box; lower bound is {lower:g}")
@@ -308,6 +324,12 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
         problems.add("calibration.parameters", "required: at least one [[calibration.parameters]]")
     if problems:
         raise StudyError(problems, source=str(study.path) if study.path else None)
-    return ParameterSpace(parameters=tuple(params), targets=tuple(targets), objective=objective or "cse",
-                          algorithm=algorithm or "pso-hj", seed=int(seed if seed is not None else 1),
-                          settings=dict(settings), reference_wall=ref)
+    return ParameterSpace(
+        parameters=tuple(params),
+        targets=tuple(targets),
+        objective=objective or "cse",
+        algorithm=algorithm or "pso-hj",
+        seed=int(seed if seed is not None else 1),
+        settings=dict(settings),
+        reference_wall=ref,
+    )

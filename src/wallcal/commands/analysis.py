@@ -27,60 +27,97 @@ def _out(args, default: str) -> Path:
 
 
 def register(sub) -> None:
-    g = sub.add_parser("grid-study", help="RMSE against the time step for each grid constant C (Fig. 4)",
-                       description="Simulate the study for every time step and grid constant C = dx^2/(alpha dt); "
-                                   "tabulate each target's RMSE, plot it against the time step per C, and name the "
-                                   "cheapest setting whose RMSEs stay within --tolerance of the finest setting's.")
+    g = sub.add_parser(
+        "grid-study",
+        help="RMSE against the time step for each grid constant C (Fig. 4)",
+        description="Simulate the study for every time step and grid constant C = dx^2/(alpha dt); "
+        "tabulate each target's RMSE, plot it against the time step per C, and name the "
+        "cheapest setting whose RMSEs stay within --tolerance of the finest setting's.",
+    )
     g.add_argument("study")
     g.add_argument("--time-steps", default="60,120,300,600,900,1800", metavar="S,S,...", help="[s]")
     g.add_argument("--grid-constants", default="1,2,3", metavar="C,C,...")
     g.add_argument("--targets", metavar="A,B", help="sensors to report (default: all)")
-    g.add_argument("--tolerance", type=float, default=0.01,
-                   help="allowed |RMSE - finest RMSE| in the target's unit (default 0.01)")
+    g.add_argument(
+        "--tolerance", type=float, default=0.01, help="allowed |RMSE - finest RMSE| in the target's unit (default 0.01)"
+    )
     g.add_argument("--out", metavar="DIR", help="default: grid_study/ next to the study")
     g.add_argument("--quiet", action="store_true")
     g.set_defaults(func=run_grid_study)
 
-    s = sub.add_parser("sensitivity", help="sensitivity of the objective to the calibration parameters",
-                       description="One-at-a-time (each parameter to its bounds), Morris (mu*, sigma) or Sobol "
-                                   "(S1, ST with confidence intervals; SALib) over the [calibration] space, "
-                                   "through the batched engine. Writes a ranking table and a bar figure.")
+    s = sub.add_parser(
+        "sensitivity",
+        help="sensitivity of the objective to the calibration parameters",
+        description="One-at-a-time (each parameter to its bounds), Morris (mu*, sigma) or Sobol "
+        "(S1, ST with confidence intervals; SALib) over the [calibration] space, "
+        "through the batched engine. Writes a ranking table and a bar figure.",
+    )
     s.add_argument("study")
     s.add_argument("--method", choices=("oat", "morris", "sobol"), default="oat")
-    s.add_argument("--samples", type=int, metavar="N", help="morris: trajectories (32); sobol: base sample N "
-                   "(256, a power of 2; N (n + 2) simulations)")
-    s.add_argument("--from", dest="from_dir", metavar="CALIBRATION_DIR",
-                   help="oat: vary around the calibrated optimum instead of the base case")
+    s.add_argument(
+        "--samples",
+        type=int,
+        metavar="N",
+        help="morris: trajectories (32); sobol: base sample N (256, a power of 2; N (n + 2) simulations)",
+    )
+    s.add_argument(
+        "--from",
+        dest="from_dir",
+        metavar="CALIBRATION_DIR",
+        help="oat: vary around the calibrated optimum instead of the base case",
+    )
     s.add_argument("--seed", type=int, default=1)
     s.add_argument("--out", metavar="DIR", help="default: sensitivity/ next to the study")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=run_sensitivity)
 
-    i = sub.add_parser("identifiability", help="structural and practical identifiability of the parameters",
-                       description="Jacobian of the scaled residuals w.r.t. the log-parameters (one batch of 2n "
-                                   "simulations), its singular values, the flat directions named in words, the "
-                                   "identifiable combinations, and the effect of adding the heat-flux sensors.")
+    i = sub.add_parser(
+        "identifiability",
+        help="structural and practical identifiability of the parameters",
+        description="Jacobian of the scaled residuals w.r.t. the log-parameters (one batch of 2n "
+        "simulations), its singular values, the flat directions named in words, the "
+        "identifiable combinations, and the effect of adding the heat-flux sensors.",
+    )
     i.add_argument("study")
-    i.add_argument("--from", dest="from_dir", metavar="CALIBRATION_DIR",
-                   help="linearise at the calibrated optimum (default: the base case)")
+    i.add_argument(
+        "--from",
+        dest="from_dir",
+        metavar="CALIBRATION_DIR",
+        help="linearise at the calibrated optimum (default: the base case)",
+    )
     i.add_argument("--targets", metavar="A,B", help="default: the study's calibration.targets")
-    i.add_argument("--sigma", choices=("accuracy", "residual"), default="accuracy",
-                   help="error sd per target: sensor accuracy (default) or residual RMSE")
+    i.add_argument(
+        "--sigma",
+        choices=("accuracy", "residual"),
+        default="accuracy",
+        help="error sd per target: sensor accuracy (default) or residual RMSE",
+    )
     i.add_argument("--out", metavar="DIR", help="default: identifiability/ next to the study")
     i.set_defaults(func=run_identifiability)
 
-    p = sub.add_parser("posterior", help="Bayesian posterior of the calibration parameters (emcee)",
-                       description="Uniform priors on the bounds, Gaussian AR(1) errors per target, emcee "
-                                   "ensemble (each step one engine batch). Reports mean, sd, 95 %% interval, a "
-                                   "verdict per parameter, correlations, identified combinations and distinct "
-                                   "parameter sets that fit equally well. Ctrl-C keeps the chain; --resume "
-                                   "continues.")
+    p = sub.add_parser(
+        "posterior",
+        help="Bayesian posterior of the calibration parameters (emcee)",
+        description="Uniform priors on the bounds, Gaussian AR(1) errors per target, emcee "
+        "ensemble (each step one engine batch). Reports mean, sd, 95 %% interval, a "
+        "verdict per parameter, correlations, identified combinations and distinct "
+        "parameter sets that fit equally well. Ctrl-C keeps the chain; --resume "
+        "continues.",
+    )
     p.add_argument("study")
-    p.add_argument("--from", dest="from_dir", metavar="CALIBRATION_DIR",
-                   help="start at this calibration's optimum (default: run calibrate first)")
+    p.add_argument(
+        "--from",
+        dest="from_dir",
+        metavar="CALIBRATION_DIR",
+        help="start at this calibration's optimum (default: run calibrate first)",
+    )
     p.add_argument("--targets", metavar="A,B")
-    p.add_argument("--sigma", choices=("estimated", "accuracy"), default="estimated",
-                   help="error sd: residual RMSE at the optimum (default) or the sensor accuracy")
+    p.add_argument(
+        "--sigma",
+        choices=("estimated", "accuracy"),
+        default="estimated",
+        help="error sd: residual RMSE at the optimum (default) or the sensor accuracy",
+    )
     p.add_argument("--walkers", type=int)
     p.add_argument("--steps", type=int, default=1500)
     p.add_argument("--seed", type=int, default=1)
@@ -104,8 +141,14 @@ def run_grid_study(args) -> int:
     from ..study import load_study
 
     study = load_study(args.study)
-    res = grid_study(study, _floats(args.time_steps, "--time-steps"), _floats(args.grid_constants, "--grid-constants"),
-                     targets=_targets(args.targets), tolerance=args.tolerance, progress=not args.quiet)
+    res = grid_study(
+        study,
+        _floats(args.time_steps, "--time-steps"),
+        _floats(args.grid_constants, "--grid-constants"),
+        targets=_targets(args.targets),
+        tolerance=args.tolerance,
+        progress=not args.quiet,
+    )
     out = _out(args, "grid_study")
     print(table(res.rmse_table(), "RMSE per target against the time step [s] for each grid constant C (Fig. 4)"))
     print()
@@ -128,14 +171,14 @@ def run_sensitivity(args) -> int:
     study = load_study(args.study)
     space = parse_space(study)
     x0 = load_optimum(space, args.from_dir) if args.from_dir else None
-    res = sensitivity(study, args.method, space=space, x0=x0, n=args.samples, seed=args.seed,
-                      progress=not args.quiet)
+    res = sensitivity(study, args.method, space=space, x0=x0, n=args.samples, seed=args.seed, progress=not args.quiet)
     out = _out(args, "sensitivity")
-    cols = {"oat": ["layer", "d_objective_lower", "d_objective_upper", "|d objective|", "relative"],
-            "morris": ["layer", "mu_star", "mu_star_conf", "sigma", "mu"],
-            "sobol": ["layer", "ST", "ST_conf", "S1", "S1_conf"]}[args.method]
-    print(table(res.ranking[cols], f"Sensitivity ranking ({args.method}) of the objective",
-                percent=("relative",)))
+    cols = {
+        "oat": ["layer", "d_objective_lower", "d_objective_upper", "|d objective|", "relative"],
+        "morris": ["layer", "mu_star", "mu_star_conf", "sigma", "mu"],
+        "sobol": ["layer", "ST", "ST_conf", "S1", "S1_conf"],
+    }[args.method]
+    print(table(res.ranking[cols], f"Sensitivity ranking ({args.method}) of the objective", percent=("relative",)))
     print()
     print(table(res.per_target, f"{res.measure} of each target's RMSE"))
     print()
@@ -160,10 +203,16 @@ def run_identifiability(args) -> int:
     res = identifiability(study, x0=x0, at=at, targets=_targets(args.targets), sigma=args.sigma)
     out = _out(args, "identifiability")
     a = res.main
-    print(f"Identifiability at the {at}, targets {'+'.join(a.targets)}: {a.rank} of {a.n} parameter directions "
-          f"identifiable (numerical rank of the residual Jacobian; threshold s/s_max < 1e-6)")
-    print(f"error sd per target ({args.sigma}): " + ", ".join(f"{k} {v:.3g}" for k, v in a.sigma.items())
-          + "; lag-1 autocorrelation: " + ", ".join(f"{k} {v:.3f}" for k, v in a.phi.items()))
+    print(
+        f"Identifiability at the {at}, targets {'+'.join(a.targets)}: {a.rank} of {a.n} parameter directions "
+        f"identifiable (numerical rank of the residual Jacobian; threshold s/s_max < 1e-6)"
+    )
+    print(
+        f"error sd per target ({args.sigma}): "
+        + ", ".join(f"{k} {v:.3g}" for k, v in a.sigma.items())
+        + "; lag-1 autocorrelation: "
+        + ", ".join(f"{k} {v:.3f}" for k, v in a.phi.items())
+    )
     print()
     print("Flat directions (the data cannot move along these):")
     for key, r in a.flat.iterrows():
@@ -173,29 +222,48 @@ def run_identifiability(args) -> int:
     print()
     _print_combinations(a)
     print()
-    print(table(a.singular[["s", "relative", "sd_log", "prior_sd", "verdict", "direction"]],
-                "Singular values (sd_log: predicted posterior sd along the direction, log units)"))
+    print(
+        table(
+            a.singular[["s", "relative", "sd_log", "prior_sd", "verdict", "direction"]],
+            "Singular values (sd_log: predicted posterior sd along the direction, log units)",
+        )
+    )
     print()
     print(table(a.parameters[["value", "null share", "sd_log", "prior_sd", "verdict"]], "Per parameter"))
     print()
     comp = res.comparison()
-    print(table(comp, "Effect of adding the heat-flux sensors (common scale gain: |J d| along the common scale of "
-                      "all lambda and rho*c; sd: 1/gain)"))
+    print(
+        table(
+            comp,
+            "Effect of adding the heat-flux sensors (common scale gain: |J d| along the common scale of "
+            "all lambda and rho*c; sd: 1/gain)",
+        )
+    )
     if any(b.scale_gain for b in res.analyses):
-        print("note: a heat-flux meter's own gain error (e.g. +-3 %) maps one-to-one onto the common scale, so a flux "
-              "fixes the absolute conductivities only to about that accuracy, whatever the sd above says")
+        print(
+            "note: a heat-flux meter's own gain error (e.g. +-3 %) maps one-to-one onto the common scale, so a flux "
+            "fixes the absolute conductivities only to about that accuracy, whatever the sd above says"
+        )
     if res.demo is not None:
         print()
         print(table(res.demo, "Moving along the common-scale direction (every lambda and rho*c times k)"))
     for b in res.analyses[1:]:
-        gained = [c for c in a.combos.index if a.combos.loc[c, "verdict"].startswith("not identifiable")
-                  and not b.combos.loc[c, "verdict"].startswith("not identifiable")]
+        gained = [
+            c
+            for c in a.combos.index
+            if a.combos.loc[c, "verdict"].startswith("not identifiable")
+            and not b.combos.loc[c, "verdict"].startswith("not identifiable")
+        ]
         if gained:
-            print(f"\nwith {'+'.join(b.targets)}: structurally identifiable now: " + ", ".join(
-                f"{c} (sd {b.combos.loc[c, 'sd %']:.1f} %)" for c in gained))
+            print(
+                f"\nwith {'+'.join(b.targets)}: structurally identifiable now: "
+                + ", ".join(f"{c} (sd {b.combos.loc[c, 'sd %']:.1f} %)" for c in gained)
+            )
     _write(res, study, out, "identifiability")
-    print(f"\nwrote {out}/identifiability.json, singular_values_*.csv, parameters_*.csv, combinations_*.csv, "
-          "singular_values.png")
+    print(
+        f"\nwrote {out}/identifiability.json, singular_values_*.csv, parameters_*.csv, combinations_*.csv, "
+        "singular_values.png"
+    )
     return 0
 
 
@@ -232,8 +300,18 @@ def run_posterior(args) -> int:
     for key, r in a.flat.iterrows():
         print(f"  - {key}: {r['in words']}")
     print()
-    res = posterior(study, x_start=x0, targets=_targets(args.targets), sigma=args.sigma, walkers=args.walkers,
-                    steps=args.steps, seed=args.seed, out_dir=out, resume=args.resume, progress=not args.quiet)
+    res = posterior(
+        study,
+        x_start=x0,
+        targets=_targets(args.targets),
+        sigma=args.sigma,
+        walkers=args.walkers,
+        steps=args.steps,
+        seed=args.seed,
+        out_dir=out,
+        resume=args.resume,
+        progress=not args.quiet,
+    )
     print(res.report())
     print()
     cols = ["mean", "sd", "q2.5", "q97.5", "sd/prior sd", "verdict"]
@@ -244,18 +322,24 @@ def run_posterior(args) -> int:
     print(table(res.combinations[cols], "Derived combinations, best identified first"))
     print()
     c = res.correlation
-    pairs = [(i, j, c.loc[i, j]) for a, i in enumerate(c.index) for j in c.columns[a + 1:] if abs(c.loc[i, j]) >= 0.7]
+    pairs = [(i, j, c.loc[i, j]) for a, i in enumerate(c.index) for j in c.columns[a + 1 :] if abs(c.loc[i, j]) >= 0.7]
     if pairs:
         print("Strong posterior correlations (|r| >= 0.7): " + "; ".join(f"{i} ~ {j} {v:+.2f}" for i, j, v in pairs))
         print()
     if len(res.nonunique):
-        print(table(res.nonunique.T, "Distinct parameter sets whose RMSEs all sit within the sensor accuracy "
-                                     "(non-uniqueness)"))
+        print(
+            table(
+                res.nonunique.T,
+                "Distinct parameter sets whose RMSEs all sit within the sensor accuracy (non-uniqueness)",
+            )
+        )
     else:
         print("no posterior sample kept every RMSE within the sensor accuracy")
     _write(res, study, out, "posterior")
-    print(f"\nwrote {out}/posterior_summary.csv, posterior_correlation.csv, posterior_combinations.csv, "
-          "non_uniqueness.csv, chain.npz, corner.png, trace.png")
+    print(
+        f"\nwrote {out}/posterior_summary.csv, posterior_correlation.csv, posterior_combinations.csv, "
+        "non_uniqueness.csv, chain.npz, corner.png, trace.png"
+    )
     if res.status != "complete":
         print("the run was interrupted: the chain so far is summarised; continue with --resume")
         return 130

@@ -10,38 +10,59 @@ from ._format import table
 
 
 def register(sub) -> None:
-    p = sub.add_parser("calibrate", help="automatic calibration of the wall's properties",
-                       description="Calibrate the study's wall over its [calibration] parameter space. Writes "
-                                   "calibrated_wall.toml, calibration.json, metrics.csv (base and calibrated, "
-                                   "Table VIII), parameters.csv, convergence.png and fit.png. Ctrl-C keeps the best "
-                                   "wall so far; --resume continues from the last checkpoint.")
+    p = sub.add_parser(
+        "calibrate",
+        help="automatic calibration of the wall's properties",
+        description="Calibrate the study's wall over its [calibration] parameter space. Writes "
+        "calibrated_wall.toml, calibration.json, metrics.csv (base and calibrated, "
+        "Table VIII), parameters.csv, convergence.png and fit.png. Ctrl-C keeps the best "
+        "wall so far; --resume continues from the last checkpoint.",
+    )
     p.add_argument("study")
     p.add_argument("--out", metavar="DIR", help="output directory (default: calibration/ next to the study)")
-    p.add_argument("--algorithm", choices=("pso-hj", "least-squares", "differential-evolution", "nelder-mead",
-                                           "cma-es"), help="default: the study's calibration.algorithm")
+    p.add_argument(
+        "--algorithm",
+        choices=("pso-hj", "least-squares", "differential-evolution", "nelder-mead", "cma-es"),
+        help="default: the study's calibration.algorithm",
+    )
     p.add_argument("--seed", type=int)
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint of --out")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run_calibrate)
 
-    c = sub.add_parser("crosscheck", help="every wall in every engine: RMSE per target (Table VIII)",
-                       description="Run each wall file in each engine against the study's measurements.")
+    c = sub.add_parser(
+        "crosscheck",
+        help="every wall in every engine: RMSE per target (Table VIII)",
+        description="Run each wall file in each engine against the study's measurements.",
+    )
     c.add_argument("study")
     c.add_argument("walls", nargs="+", metavar="WALL.toml")
     c.add_argument("--engines", default="fd-cn", help="comma-separated engines (default fd-cn)")
     c.add_argument("--out", metavar="DIR")
     c.set_defaults(func=run_crosscheck)
 
-    v = sub.add_parser("convert-conductivity", help="convert declared conductivities to the wall's temperature "
-                       "(ISO 10456)", description="Move conductivities from their declared temperature to the "
-                       "mean temperature each layer had in the campaign (from the study's data) or to a given "
-                       "temperature, with the exponential temperature factor of ISO 10456; writes a new wall file.")
+    v = sub.add_parser(
+        "convert-conductivity",
+        help="convert declared conductivities to the wall's temperature (ISO 10456)",
+        description="Move conductivities from their declared temperature to the "
+        "mean temperature each layer had in the campaign (from the study's data) or to a given "
+        "temperature, with the exponential temperature factor of ISO 10456; writes a new wall file.",
+    )
     v.add_argument("study", help="study file (its wall and data)")
-    v.add_argument("--temperature", type=float, metavar="DEGC", help="one target temperature for all layers "
-                   "(default: each layer's mean measured temperature over the period)")
-    v.add_argument("--coefficient", action="append", default=[], metavar="[ID=]F",
-                   help="temperature conversion coefficient f_T [1/K], for all layers or ID=F per layer "
-                        "(repeatable); default each layer's conductivity_temperature_coefficient")
+    v.add_argument(
+        "--temperature",
+        type=float,
+        metavar="DEGC",
+        help="one target temperature for all layers (default: each layer's mean measured temperature over the period)",
+    )
+    v.add_argument(
+        "--coefficient",
+        action="append",
+        default=[],
+        metavar="[ID=]F",
+        help="temperature conversion coefficient f_T [1/K], for all layers or ID=F per layer "
+        "(repeatable); default each layer's conductivity_temperature_coefficient",
+    )
     v.add_argument("--layers", help="comma-separated layer ids to convert (default: layers with a coefficient)")
     v.add_argument("--out", metavar="FILE", required=True, help="the new wall file (TOML)")
     v.set_defaults(func=run_convert)
@@ -53,14 +74,22 @@ def run_calibrate(args) -> int:
 
     study = load_study(args.study)
     out = Path(args.out) if args.out else Path(args.study).resolve().parent / "calibration"
-    res = calibrate(study, algorithm=args.algorithm, seed=args.seed, out_dir=out, resume=args.resume,
-                    progress=not args.quiet)
+    res = calibrate(
+        study, algorithm=args.algorithm, seed=args.seed, out_dir=out, resume=args.resume, progress=not args.quiet
+    )
     res.write(out)
-    print(f"{study.name}: {res.algorithm}, objective {res.space.objective} {res.f_base:.6g} -> {res.f_opt:.6g} "
-          f"in {res.evaluations} simulations, {res.seconds:.1f} s ({res.status})")
+    print(
+        f"{study.name}: {res.algorithm}, objective {res.space.objective} {res.f_base:.6g} -> {res.f_opt:.6g} "
+        f"in {res.evaluations} simulations, {res.seconds:.1f} s ({res.status})"
+    )
     print()
-    print(table(res.parameter_table()[["base", "lower", "upper", "optimum", "change"]],
-                "Parameters (SI units)", percent=("change",)))
+    print(
+        table(
+            res.parameter_table()[["base", "lower", "upper", "optimum", "change"]],
+            "Parameters (SI units)",
+            percent=("change",),
+        )
+    )
     print()
     m = res.metrics.pivot(index="signal", columns="case", values="rmse")[["base", "calibrated"]]
     if res.floors:
@@ -89,8 +118,9 @@ def run_crosscheck(args) -> int:
         wall = load_wall(wpath)
         if not wall.probes:
             wall = wall.replace(probes=study.wall.probes)
-        missing = [s.name for s in study.sensors if s.quantity == "temperature"
-                   and s.name not in {p.name for p in wall.probes}]
+        missing = [
+            s.name for s in study.sensors if s.quantity == "temperature" and s.name not in {p.name for p in wall.probes}
+        ]
         if missing:
             from ..errors import StudyError
 
@@ -98,8 +128,7 @@ def run_crosscheck(args) -> int:
         comp = compare_engines(study.replace(wall=wall), engines)
         for eng in comp.results:
             met = comp.results[eng].metrics.set_index("signal")
-            rows.append({"wall": Path(wpath).stem, "engine": eng,
-                         **{f"rmse_{t}": met.loc[t, "rmse"] for t in targets}})
+            rows.append({"wall": Path(wpath).stem, "engine": eng, **{f"rmse_{t}": met.loc[t, "rmse"] for t in targets}})
     df = pd.DataFrame(rows)
     print(table(df.set_index(["wall"]), "Optimal cases and cross-check: RMSE per target (Table VIII)"))
     if args.out:
@@ -136,8 +165,15 @@ def run_convert(args) -> int:
     for a, b in zip(study.wall.layers, new.layers, strict=True):
         if a.is_massless:
             continue
-        rows.append({"layer": a.id, "from degC": a.reference_temperature, "to degC": b.reference_temperature,
-                     "lambda before": a.conductivity, "lambda after": b.conductivity})
+        rows.append(
+            {
+                "layer": a.id,
+                "from degC": a.reference_temperature,
+                "to degC": b.reference_temperature,
+                "lambda before": a.conductivity,
+                "lambda after": b.conductivity,
+            }
+        )
     print(table(pd.DataFrame(rows).set_index("layer"), "Conductivities (ISO 10456 temperature conversion)"))
     from ..outputs import write_text_atomic
 

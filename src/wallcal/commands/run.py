@@ -6,15 +6,22 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("run", help="the whole study: data, engines, grid, sensitivity, calibration, "
-                       "cross-check, standards, identifiability, and an HTML report",
-                       description="Run every stage of the study and write DIR/index.html (self-contained) with "
-                                   "each stage's machine-readable results in DIR/<stage>/. A failing optional "
-                                   "stage is reported, not fatal.")
+    p = sub.add_parser(
+        "run",
+        help="the whole study: data, engines, grid, sensitivity, calibration, "
+        "cross-check, standards, identifiability, and an HTML report",
+        description="Run every stage of the study and write DIR/index.html (self-contained) with "
+        "each stage's machine-readable results in DIR/<stage>/. A failing optional "
+        "stage is reported, not fatal.",
+    )
     p.add_argument("study")
     p.add_argument("--out", metavar="DIR", help="default: report/ next to the study")
-    p.add_argument("--skip", default="", help="comma-separated stages to leave out "
-                   "(data, engines, grid, sensitivity, calibration, crosscheck, standards, identifiability)")
+    p.add_argument(
+        "--skip",
+        default="",
+        help="comma-separated stages to leave out "
+        "(data, engines, grid, sensitivity, calibration, crosscheck, standards, identifiability)",
+    )
     p.add_argument("--engines", help="comma-separated engines (default: every available one)")
     p.add_argument("--quick", action="store_true", help="smaller grid study and swarm (a preview)")
     p.add_argument("--quiet", action="store_true")

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("serve", help="a local web page for manual calibration",
-                       description="Serve a page with one control per layer property (and the calibration "
-                                   "parameters), a live plot of measured vs simulated for every sensor and the "
-                                   "metrics table; a button saves the current wall as TOML next to the study.")
+    p = sub.add_parser(
+        "serve",
+        help="a local web page for manual calibration",
+        description="Serve a page with one control per layer property (and the calibration "
+        "parameters), a live plot of measured vs simulated for every sensor and the "
+        "metrics table; a button saves the current wall as TOML next to the study.",
+    )
     p.add_argument("study")
     p.add_argument("--port", type=int, default=8765)
     p.add_argument("--host", default="127.0.0.1", help="interface to bind (default 127.0.0.1: this machine only)")

@@ -8,9 +8,12 @@ from ._format import table
 
 
 def register(sub) -> None:
-    p = sub.add_parser("simulate", help="simulate a study and compare with the measurements",
-                       description="Simulate the study's wall driven by its boundary data and print the "
-                                   "measured-signal summary (Table III) and the error metrics (Table IV).")
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a study and compare with the measurements",
+        description="Simulate the study's wall driven by its boundary data and print the "
+        "measured-signal summary (Table III) and the error metrics (Table IV).",
+    )
     p.add_argument("study", help="study file (TOML)")
     p.add_argument("--engine", choices=("fd-cn", "fd-implicit", "energyplus"), help="default: the study's")
     p.add_argument("--time-step", type=float, metavar="S", help="time step [s]; default: the study's")
@@ -25,21 +28,36 @@ def run(args) -> int:
     from ..study import load_study
 
     study = load_study(args.study)
-    res = simulate(study, args.engine, time_step=args.time_step, grid_constant=args.grid_constant,
-                   node_rule=args.node_rule)
-    print(f"{study.name or Path(args.study).name}: engine {res.engine}, dt = {res.info['time_step_s']:g} s, "
-          f"C = {res.info['grid_constant']:g}, {res.info.get('nodes', '?')} nodes, "
-          f"{1e3 * res.info.get('seconds', float('nan')):.1f} ms")
+    res = simulate(
+        study, args.engine, time_step=args.time_step, grid_constant=args.grid_constant, node_rule=args.node_rule
+    )
+    print(
+        f"{study.name or Path(args.study).name}: engine {res.engine}, dt = {res.info['time_step_s']:g} s, "
+        f"C = {res.info['grid_constant']:g}, {res.info.get('nodes', '?')} nodes, "
+        f"{1e3 * res.info.get('seconds', float('nan')):.1f} ms"
+    )
     print()
-    print(table(res.summary[["n", "max", "min", "range", "mean", "effective"]],
-                "Measured signals over the period (Table III)"))
+    print(
+        table(
+            res.summary[["n", "max", "min", "range", "mean", "effective"]],
+            "Measured signals over the period (Table III)",
+        )
+    )
     print()
     m = res.metrics.set_index("signal")
-    print(table(m, "Simulated vs measured (RMSE etc. in the signal's unit; fractions in %)",
-                percent=("rn_rmse", "cv_rmse_eff", "nmbe", "cv_rmse_g14")))
+    print(
+        table(
+            m,
+            "Simulated vs measured (RMSE etc. in the signal's unit; fractions in %)",
+            percent=("rn_rmse", "cv_rmse_eff", "nmbe", "cv_rmse_g14"),
+        )
+    )
     if res.info.get("spikes_found"):
-        print(f"\n{res.info['spikes_found']} single-sample spike(s) found"
-              + (" and left out of the metrics" if res.info["spikes_removed"] else "") + ".")
+        print(
+            f"\n{res.info['spikes_found']} single-sample spike(s) found"
+            + (" and left out of the metrics" if res.info["spikes_removed"] else "")
+            + "."
+        )
     if res.info.get("bridged_gaps"):
         print(f"{res.info['bridged_gaps']} gap(s) in boundary series bridged by linear interpolation.")
     if args.out:

@@ -64,8 +64,7 @@ from ..wall import Wall
 from . import kernels, modal
 from .base import Engine, EngineOutput, SimulationInput
 
-BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN,
-            "heat_flux": kernels.FLUX}
+BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN, "heat_flux": kernels.FLUX}
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
 DEFAULT_STIFF_LIMIT = 10.0
 
@@ -118,10 +117,12 @@ class PreparedFD:
                 "heat-flux boundaries on both faces leave the wall's temperature level undetermined: "
                 "impose a temperature on at least one face"
             )
-        self.bc_h = np.array([
-            inp.exterior.surface_coefficient or 0.0 if inp.exterior.type == "air_temperature" else 0.0,
-            inp.interior.surface_coefficient or 0.0 if inp.interior.type == "air_temperature" else 0.0,
-        ])
+        self.bc_h = np.array(
+            [
+                inp.exterior.surface_coefficient or 0.0 if inp.exterior.type == "air_temperature" else 0.0,
+                inp.interior.surface_coefficient or 0.0 if inp.interior.type == "air_temperature" else 0.0,
+            ]
+        )
         self.ue = np.ascontiguousarray(inp.exterior.values, dtype=float)
         self.ui = np.ascontiguousarray(inp.interior.values, dtype=float)
         pos = np.asarray(inp.output_positions, dtype=float)
@@ -191,8 +192,15 @@ class PreparedFD:
 
     def _thetas(self, cap: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """theta per link and per boundary term, and the number of links made implicit."""
-        return kernels.link_thetas(cap, g, self.theta, self.dt, self.stiff_limit,
-                                   self.bc_type[0] == kernels.DIRICHLET, self.bc_type[1] == kernels.DIRICHLET)
+        return kernels.link_thetas(
+            cap,
+            g,
+            self.theta,
+            self.dt,
+            self.stiff_limit,
+            self.bc_type[0] == kernels.DIRICHLET,
+            self.bc_type[1] == kernels.DIRICHLET,
+        )
 
     # ------------------------------------------------------------------ running
     def probe_depth_matrix(self, walls: list[Wall] | None = None, n: int = 1) -> np.ndarray:
@@ -212,11 +220,16 @@ class PreparedFD:
     def fast_path_possible(self, cap: np.ndarray, n_forced: np.ndarray) -> bool:
         """The modal fast path applies: constant properties, every unknown node stores heat, one theta."""
         j0, m = self.unknown_range
-        return (not self.nonlinear) and m >= 1 and bool((cap[:, j0:j0 + m] > 0).all()) and not n_forced.any()
+        return (not self.nonlinear) and m >= 1 and bool((cap[:, j0 : j0 + m] > 0).all()) and not n_forced.any()
 
-    def run_batch(self, props: PropertyArrays, probe_depths: np.ndarray | None = None,
-                  initial_state: np.ndarray | None = None, path: str = "auto",
-                  rows: np.ndarray | None = None) -> BatchResult:
+    def run_batch(
+        self,
+        props: PropertyArrays,
+        probe_depths: np.ndarray | None = None,
+        initial_state: np.ndarray | None = None,
+        path: str = "auto",
+        rows: np.ndarray | None = None,
+    ) -> BatchResult:
         """Run candidate walls given as property arrays.
 
         Parameters
@@ -245,8 +258,10 @@ class PreparedFD:
         pa, pb, pw = probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
         possible = self.fast_path_possible(cap, n_forced)
         if path == "modal" and not possible:
-            raise EngineError("the modal fast path needs constant conductivities, heat capacity at every "
-                              "unknown node and no stiff links; use path='general'")
+            raise EngineError(
+                "the modal fast path needs constant conductivities, heat capacity at every "
+                "unknown node and no stiff links; use path='general'"
+            )
         if path in ("auto", "modal") and possible:
             return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced, rows)
         coef = self._link_coefficients(props)
@@ -259,9 +274,30 @@ class PreparedFD:
         # one candidate: run on the calling thread (waking numba's worker threads costs more than it saves)
         run = kernels.run_serial if nc == 1 else kernels.run_batch
         out, energy, tend = run(
-            cap, g, theta, kind, coef, tref, ts, tl, self.tab_T, self.tab_v, self.nonlinear,
-            self.bc_type, bc_h, bc_theta, self.ue, self.ui, self.dt, self.out_step, self.out_w,
-            pa, pb, pw, tinit, self.refactor_drift,
+            cap,
+            g,
+            theta,
+            kind,
+            coef,
+            tref,
+            ts,
+            tl,
+            self.tab_T,
+            self.tab_v,
+            self.nonlinear,
+            self.bc_type,
+            bc_h,
+            bc_theta,
+            self.ue,
+            self.ui,
+            self.dt,
+            self.out_step,
+            self.out_w,
+            pa,
+            pb,
+            pw,
+            tinit,
+            self.refactor_drift,
         )
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
@@ -277,8 +313,9 @@ class PreparedFD:
 
     def _output_plan(self):
         if getattr(self, "_plan", None) is None:
-            self._plan = modal.output_plan(self.out_step, self.out_w, len(self.ue) - 1, self.theta, self.ue,
-                                           self.ui, self.dt)
+            self._plan = modal.output_plan(
+                self.out_step, self.out_w, len(self.ue) - 1, self.theta, self.ue, self.ui, self.dt
+            )
         return self._plan
 
     def _run_modal(self, cap, g, pa, pb, pw, initial_state, n_forced, rows=None) -> BatchResult:
@@ -287,8 +324,26 @@ class PreparedFD:
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         base, wp, wf, feat = self._output_plan()
         run = modal.modal_serial if nc == 1 else modal.modal_batch
-        out, tend = run(cap, g, pa, pb, pw, self.bc_type, self.bc_h, self.theta, self.dt, self._modal_steps(),
-                        self.ue, self.ui, base, wp, wf, feat, want, t0)
+        out, tend = run(
+            cap,
+            g,
+            pa,
+            pb,
+            pw,
+            self.bc_type,
+            self.bc_h,
+            self.theta,
+            self.dt,
+            self._modal_steps(),
+            self.ue,
+            self.ui,
+            base,
+            wp,
+            wf,
+            feat,
+            want,
+            t0,
+        )
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         energy = np.full((nc, 3), np.nan)

@@ -153,15 +153,15 @@ def _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, 
         else:
             fa = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta)
             fb = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, tb)
-            fm = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v,
-                              0.5 * (ta + tb))
+            fm = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, 0.5 * (ta + tb))
             fac = (fa + 4.0 * fm + fb) / 6.0
         g[lnk] = g_ref[lnk] * fac
 
 
 @njit(cache=True)
-def _steady(cap, g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-            bc_type, bc_h, ue0, ui0, j0, m, Tfull):
+def _steady(
+    cap, g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear, bc_type, bc_h, ue0, ui0, j0, m, Tfull
+):
     """Steady state for the first boundary values (Picard iterations when lambda(T))."""
     n_nodes = Tfull.shape[0]
     ones = np.ones(g.shape[0])
@@ -400,8 +400,9 @@ def _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol):
     for lnk in range(n_links):
         ia = 0.0 if (lnk == 0 and bc_type[0] == 0) or cap[lnk] <= 0.0 else 1.0 / cap[lnk]
         ib = 0.0 if (lnk + 1 == n_nodes - 1 and bc_type[1] == 0) or cap[lnk + 1] <= 0.0 else 1.0 / cap[lnk + 1]
-        if (cap[lnk] <= 0.0 and not (lnk == 0 and bc_type[0] == 0)) or \
-                (cap[lnk + 1] <= 0.0 and not (lnk + 1 == n_nodes - 1 and bc_type[1] == 0)):
+        if (cap[lnk] <= 0.0 and not (lnk == 0 and bc_type[0] == 0)) or (
+            cap[lnk + 1] <= 0.0 and not (lnk + 1 == n_nodes - 1 and bc_type[1] == 0)
+        ):
             tol[lnk] = 0.0
             continue
         stiff = theta[lnk] * dt * (ia + ib)
@@ -411,8 +412,34 @@ def _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol):
 
 
 @njit(cache=True)
-def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-             bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, out, energy, Tinit, drift):
+def _run_one(
+    cap,
+    g_ref,
+    theta,
+    kind,
+    coef,
+    tref,
+    tab_start,
+    tab_len,
+    tab_T,
+    tab_v,
+    nonlinear,
+    bc_type,
+    bc_h,
+    bc_theta,
+    ue,
+    ui,
+    dt,
+    out_step,
+    out_w,
+    pa,
+    pb,
+    pw,
+    out,
+    energy,
+    Tinit,
+    drift,
+):
     """One candidate of :func:`run_batch`.
 
     Each link's flux over a step is ``F_l = E_l + theta_l g0_l (T^{n+1}_a - T^{n+1}_b)``, applied with
@@ -465,8 +492,26 @@ def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab
         if bc_type[1] == 0:
             Tn[n_nodes - 1] = ui[0]
     else:
-        _steady(cap, g0, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-                bc_type, bc_h, ue[0], ui[0], j0, m, Tn)
+        _steady(
+            cap,
+            g0,
+            g_ref,
+            kind,
+            coef,
+            tref,
+            tab_start,
+            tab_len,
+            tab_T,
+            tab_v,
+            nonlinear,
+            bc_type,
+            bc_h,
+            ue[0],
+            ui[0],
+            j0,
+            m,
+            Tn,
+        )
     e_start = 0.0
     for j in range(n_nodes):
         Told[j] = Tn[j]
@@ -509,8 +554,9 @@ def _run_one(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab
                 n_big, n_drift = _step_conductances(gs, g_ref, g0, tol, coef, Tmid, Tmid_old, Ea, Eb)
                 if n % 1024 == 0 or n_big > 0.0 or has_table:
                     _exact_factors(coef, tref, Tmid, Ea, Eb)
-                    _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table,
-                                            Tmid, Ea, Eb)
+                    _nonlinear_conductances(
+                        gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb
+                    )
                     n_drift = 0.0
                     for lnk in range(n_links):
                         if abs(gs[lnk] - g0[lnk]) > tol[lnk]:
@@ -593,15 +639,39 @@ def _output(k, nk, w, P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out):
     n_pr = P.shape[1]
     for q in range(n_pr):
         out[q, k] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
-    out[n_pr, k] = ((1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e)
-                    + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e))
-    out[n_pr + 1, k] = ((1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i)
-                        + w * _face_flux(Fi, nk + 1, n_steps, ui, flux_i))
+    out[n_pr, k] = (1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e) + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e)
+    out[n_pr + 1, k] = (1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i) + w * _face_flux(
+        Fi, nk + 1, n_steps, ui, flux_i
+    )
 
 
 @njit(parallel=True, cache=True)
-def run_batch(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-              bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, Tinit, drift=0.02):
+def run_batch(
+    cap,
+    g_ref,
+    theta,
+    kind,
+    coef,
+    tref,
+    tab_start,
+    tab_len,
+    tab_T,
+    tab_v,
+    nonlinear,
+    bc_type,
+    bc_h,
+    bc_theta,
+    ue,
+    ui,
+    dt,
+    out_step,
+    out_w,
+    pa,
+    pb,
+    pw,
+    Tinit,
+    drift=0.02,
+):
     """Run every candidate wall of a batch.
 
     Parameters (c = candidate, j = node, l = link, k = output time, p = probe)
@@ -633,15 +703,64 @@ def run_batch(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, ta
     energy = np.zeros((nc, 3))
     Tend = np.zeros(cap.shape)
     for c in prange(nc):
-        Tend[c] = _run_one(cap[c], g_ref[c], theta[c], kind[c], coef[c], tref[c], tab_start[c], tab_len[c],
-                           tab_T, tab_v, nonlinear, bc_type, bc_h[c], bc_theta[c], ue, ui, dt,
-                           out_step, out_w, pa[c], pb[c], pw[c], out[c], energy[c], Tinit[c], drift)
+        Tend[c] = _run_one(
+            cap[c],
+            g_ref[c],
+            theta[c],
+            kind[c],
+            coef[c],
+            tref[c],
+            tab_start[c],
+            tab_len[c],
+            tab_T,
+            tab_v,
+            nonlinear,
+            bc_type,
+            bc_h[c],
+            bc_theta[c],
+            ue,
+            ui,
+            dt,
+            out_step,
+            out_w,
+            pa[c],
+            pb[c],
+            pw[c],
+            out[c],
+            energy[c],
+            Tinit[c],
+            drift,
+        )
     return out, energy, Tend
 
 
 @njit(cache=True)
-def run_serial(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear,
-               bc_type, bc_h, bc_theta, ue, ui, dt, out_step, out_w, pa, pb, pw, Tinit, drift=0.02):
+def run_serial(
+    cap,
+    g_ref,
+    theta,
+    kind,
+    coef,
+    tref,
+    tab_start,
+    tab_len,
+    tab_T,
+    tab_v,
+    nonlinear,
+    bc_type,
+    bc_h,
+    bc_theta,
+    ue,
+    ui,
+    dt,
+    out_step,
+    out_w,
+    pa,
+    pb,
+    pw,
+    Tinit,
+    drift=0.02,
+):
     """:func:`run_batch` on the calling thread (small batches: no thread wake-up latency)."""
     nc = cap.shape[0]
     n_q = pa.shape[1] + 2
@@ -649,9 +768,34 @@ def run_serial(cap, g_ref, theta, kind, coef, tref, tab_start, tab_len, tab_T, t
     energy = np.zeros((nc, 3))
     Tend = np.zeros(cap.shape)
     for c in range(nc):
-        Tend[c] = _run_one(cap[c], g_ref[c], theta[c], kind[c], coef[c], tref[c], tab_start[c], tab_len[c],
-                           tab_T, tab_v, nonlinear, bc_type, bc_h[c], bc_theta[c], ue, ui, dt,
-                           out_step, out_w, pa[c], pb[c], pw[c], out[c], energy[c], Tinit[c], drift)
+        Tend[c] = _run_one(
+            cap[c],
+            g_ref[c],
+            theta[c],
+            kind[c],
+            coef[c],
+            tref[c],
+            tab_start[c],
+            tab_len[c],
+            tab_T,
+            tab_v,
+            nonlinear,
+            bc_type,
+            bc_h[c],
+            bc_theta[c],
+            ue,
+            ui,
+            dt,
+            out_step,
+            out_w,
+            pa[c],
+            pb[c],
+            pw[c],
+            out[c],
+            energy[c],
+            Tinit[c],
+            drift,
+        )
     return out, energy, Tend
 
 

@@ -487,8 +487,28 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, w
     out = np.empty((nc, pa.shape[1] + 2, base.shape[0]))
     tend = np.empty(cap.shape)
     for c in prange(nc):
-        _modal_one(cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat,
-                   want, out[c], t0[c], tend[c])
+        _modal_one(
+            cap[c],
+            g[c],
+            pa[c],
+            pb[c],
+            pw[c],
+            bc_type,
+            bc_h,
+            theta,
+            dt,
+            s,
+            ue,
+            ui,
+            base,
+            wp,
+            wf,
+            feat,
+            want,
+            out[c],
+            t0[c],
+            tend[c],
+        )
     return out, tend
 
 
@@ -499,6 +519,26 @@ def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, 
     out = np.empty((nc, pa.shape[1] + 2, base.shape[0]))
     tend = np.empty(cap.shape)
     for c in range(nc):
-        _modal_one(cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat,
-                   want, out[c], t0[c], tend[c])
+        _modal_one(
+            cap[c],
+            g[c],
+            pa[c],
+            pb[c],
+            pw[c],
+            bc_type,
+            bc_h,
+            theta,
+            dt,
+            s,
+            ue,
+            ui,
+            base,
+            wp,
+            wf,
+            feat,
+            want,
+            out[c],
+            t0[c],
+            tend[c],
+        )
     return out, tend

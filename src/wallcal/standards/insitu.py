@@ -29,29 +29,48 @@ def _heat_flux_sensor(study, face: str, name: str | None):
             if s.name == name:
                 return s
         valid = [s.name for s in cands]
-        raise StudyError([f"--sensor: {name!r} is not a heat_flux sensor at the {face} face; "
-                          + (closest(name, valid) if valid else "the study has none there")],
-                         source=str(study.path) if study.path else None)
+        raise StudyError(
+            [
+                f"--sensor: {name!r} is not a heat_flux sensor at the {face} face; "
+                + (closest(name, valid) if valid else "the study has none there")
+            ],
+            source=str(study.path) if study.path else None,
+        )
     if not cands:
         others = [f"{s.name} ({s.face})" for s in study.sensors if s.quantity == "heat_flux"]
-        hint = (f"; heat_flux sensors in the study: {', '.join(others)} (use --face)" if others
-                else "; add a [[sensors]] entry with quantity = \"heat_flux\" and face = \"" + face + "\"")
-        raise StudyError([f"sensors: no heat_flux sensor at the {face} face{hint}"],
-                         source=str(study.path) if study.path else None)
+        hint = (
+            f"; heat_flux sensors in the study: {', '.join(others)} (use --face)"
+            if others
+            else '; add a [[sensors]] entry with quantity = "heat_flux" and face = "' + face + '"'
+        )
+        raise StudyError(
+            [f"sensors: no heat_flux sensor at the {face} face{hint}"], source=str(study.path) if study.path else None
+        )
     if len(cands) > 1:
-        raise StudyError([f"sensors: {len(cands)} heat_flux sensors at the {face} face "
-                          f"({', '.join(s.name for s in cands)}); choose one with --sensor"],
-                         source=str(study.path) if study.path else None)
+        raise StudyError(
+            [
+                f"sensors: {len(cands)} heat_flux sensors at the {face} face "
+                f"({', '.join(s.name for s in cands)}); choose one with --sensor"
+            ],
+            source=str(study.path) if study.path else None,
+        )
     return cands[0]
 
 
 def _check_surface_boundaries(study) -> None:
-    bad = [f"boundary.{face}.type is {b.type!r}" for face, b in (("exterior", study.exterior),
-                                                                   ("interior", study.interior))
-           if b.type != "surface_temperature"]
+    bad = [
+        f"boundary.{face}.type is {b.type!r}"
+        for face, b in (("exterior", study.exterior), ("interior", study.interior))
+        if b.type != "surface_temperature"
+    ]
     if bad:
-        raise StudyError([f"ISO 9869 needs measured surface temperatures on both faces, but {' and '.join(bad)}"
-                          " (not \"surface_temperature\")"], source=str(study.path) if study.path else None)
+        raise StudyError(
+            [
+                f"ISO 9869 needs measured surface temperatures on both faces, but {' and '.join(bad)}"
+                ' (not "surface_temperature")'
+            ],
+            source=str(study.path) if study.path else None,
+        )
 
 
 def _select(frame: pd.DataFrame, cols: list[str], start, end, max_gap: float) -> tuple[pd.DataFrame, int]:
@@ -110,12 +129,26 @@ class InSituResult:
     def criteria_table(self) -> pd.DataFrame:
         rows = []
         for c in self.res.verdict.criteria:
-            status = ("not required" if not c.required and c.passed is None else
-                      "not evaluated" if c.passed is None else "pass" if c.passed else "FAIL")
+            status = (
+                "not required"
+                if not c.required and c.passed is None
+                else "not evaluated"
+                if c.passed is None
+                else "pass"
+                if c.passed
+                else "FAIL"
+            )
             if not c.required and c.passed is not None:
                 status += " (not required)"
-            rows.append({"criterion": c.name, "result": status, "value": _crit_value(c),
-                         "limit": _crit_value(c, limit=True), "detail": c.detail})
+            rows.append(
+                {
+                    "criterion": c.name,
+                    "result": status,
+                    "value": _crit_value(c),
+                    "limit": _crit_value(c, limit=True),
+                    "detail": c.detail,
+                }
+            )
         return pd.DataFrame(rows).set_index("criterion")
 
     def to_json(self) -> dict:
@@ -145,8 +178,15 @@ class InSituResult:
             "statement": res.verdict.statement,
             "failing": res.verdict.failing,
             "criteria": [
-                {"name": c.name, "description": c.description, "required": c.required, "passed": c.passed,
-                 "value": _json_num(c.value), "limit": _json_num(c.limit), "detail": c.detail}
+                {
+                    "name": c.name,
+                    "description": c.description,
+                    "required": c.required,
+                    "passed": c.passed,
+                    "value": _json_num(c.value),
+                    "limit": _json_num(c.limit),
+                    "detail": c.detail,
+                }
                 for c in res.verdict.criteria
             ],
         }
@@ -154,13 +194,16 @@ class InSituResult:
     def write_into(self, d) -> list[str]:
         d = Path(d)
         sel, t = self.selection, self.times_s
-        running = pd.DataFrame({
-            "elapsed_h": t / 3600.0,
-            "q_W_m2": sel[self.sensor].to_numpy(),
-            "t_si_C": sel["interior"].to_numpy(),
-            "t_se_C": sel["exterior"].to_numpy(),
-            "r_running_m2K_W": self.res.r_running,
-        }, index=sel.index.strftime("%Y-%m-%dT%H:%M:%S"))
+        running = pd.DataFrame(
+            {
+                "elapsed_h": t / 3600.0,
+                "q_W_m2": sel[self.sensor].to_numpy(),
+                "t_si_C": sel["interior"].to_numpy(),
+                "t_se_C": sel["exterior"].to_numpy(),
+                "r_running_m2K_W": self.res.r_running,
+            },
+            index=sel.index.strftime("%Y-%m-%dT%H:%M:%S"),
+        )
         running.index.name = "timestamp"
         running.to_csv(d / "iso9869.csv", float_format="%.6g")
         (d / "iso9869.json").write_text(json.dumps(self.to_json(), indent=2, allow_nan=False))
@@ -168,8 +211,9 @@ class InSituResult:
         return ["iso9869.csv", "iso9869.json", "iso9869.png"]
 
 
-def iso9869_for_study(study, face: str = "interior", sensor: str | None = None, whole_record: bool = False,
-                      measurements=None) -> InSituResult:
+def iso9869_for_study(
+    study, face: str = "interior", sensor: str | None = None, whole_record: bool = False, measurements=None
+) -> InSituResult:
     """Run the ISO 9869-1 average method on the study's measured heat flux at ``face``.
 
     Raises
@@ -191,12 +235,26 @@ def iso9869_for_study(study, face: str = "interior", sensor: str | None = None, 
         start, end = pd.Timestamp(study.period.start), pd.Timestamp(study.period.end)
     sel, n_filled = _select(frame, [s.name, "interior", "exterior"], start, end, study.data.max_gap)
     t = (sel.index - sel.index[0]).total_seconds().to_numpy(dtype=float)
-    res = iso9869.average_method(t, sel[s.name].to_numpy(), sel["interior"].to_numpy(),
-                                 sel["exterior"].to_numpy(), wall=study.wall, q_side=face)
+    res = iso9869.average_method(
+        t, sel[s.name].to_numpy(), sel["interior"].to_numpy(), sel["exterior"].to_numpy(), wall=study.wall, q_side=face
+    )
     rsi, rse = iso6946.surface_resistances("horizontal")
     u = 1.0 / (rsi + res.r_value + rse) if res.r_value > 0 else float("nan")
-    return InSituResult(study=study, face=face, sensor=s.name, start=start, end=end, whole_record=whole_record,
-                        times_s=t, selection=sel, n_filled=n_filled, res=res, u=u, rsi=rsi, rse=rse)
+    return InSituResult(
+        study=study,
+        face=face,
+        sensor=s.name,
+        start=start,
+        end=end,
+        whole_record=whole_record,
+        times_s=t,
+        selection=sel,
+        n_filled=n_filled,
+        res=res,
+        u=u,
+        rsi=rsi,
+        rse=rse,
+    )
 
 
 def _crit_value(c, limit: bool = False):
@@ -224,8 +282,7 @@ def _figure(path: Path, hours: np.ndarray, res, sensor: str, face: str, title: s
     fig, ax = plt.subplots(figsize=(8, 4.5))
     try:
         r_end = res.r_value
-        ax.axhspan(0.95 * r_end, 1.05 * r_end, color="tab:green", alpha=0.2,
-                   label=f"final R = {r_end:.2f} m2K/W ± 5 %")
+        ax.axhspan(0.95 * r_end, 1.05 * r_end, color="tab:green", alpha=0.2, label=f"final R = {r_end:.2f} m2K/W ± 5 %")
         ax.plot(hours, res.r_running, color="tab:blue", lw=1.2, label="running estimate")
         if res.duration_h > 24:
             ax.axvline(res.duration_h - 24, color="0.5", ls=":", lw=1, label="24 h before the end")
@@ -238,8 +295,11 @@ def _figure(path: Path, hours: np.ndarray, res, sensor: str, face: str, title: s
             lo, hi = float(finite.min()), float(finite.max())
             lo, hi = min(lo, 0.9 * r_end), max(hi, 1.1 * r_end)
             ax.set_ylim(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
-        ax.set_title(f"{title + ': ' if title else ''}ISO 9869-1 average method ({sensor}, {face} face)\n"
-                     f"{res.verdict.statement}", fontsize=9)
+        ax.set_title(
+            f"{title + ': ' if title else ''}ISO 9869-1 average method ({sensor}, {face} face)\n"
+            f"{res.verdict.statement}",
+            fontsize=9,
+        )
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
         fig.tight_layout()

@@ -194,9 +194,7 @@ def wall_matrix(
         if layer.is_massless:
             z = z @ resistance_matrix(layer.thermal_resistance)
         else:
-            z = z @ layer_matrix(
-                layer.thickness, layer.conductivity, layer.density, layer.specific_heat, period_s
-            )
+            z = z @ layer_matrix(layer.thickness, layer.conductivity, layer.density, layer.specific_heat, period_s)
         if layer.contact_resistance and i < len(layers) - 1:
             z = z @ resistance_matrix(layer.contact_resistance)
     return z @ resistance_matrix(rsi)
@@ -498,18 +496,11 @@ def periodic_profile(
     """
     period_s = _check_period(period_s)
     if interface_side not in ("mean", "exterior", "interior"):
-        raise StudyError(
-            [f"interface_side: must be 'mean', 'exterior' or 'interior', got {interface_side!r}"]
-        )
+        raise StudyError([f"interface_side: must be 'mean', 'exterior' or 'interior', got {interface_side!r}"])
     _check_profile_wall(wall)
     segs, length = _segments(wall)
     x = np.atleast_1d(np.asarray(depths_m, dtype=float))
-    if (
-        x.ndim != 1
-        or np.any(~np.isfinite(x))
-        or np.any(x < -1e-12 * length)
-        or np.any(x > length * (1 + 1e-12))
-    ):
+    if x.ndim != 1 or np.any(~np.isfinite(x)) or np.any(x < -1e-12 * length) or np.any(x > length * (1 + 1e-12)):
         raise StudyError([f"depths_m: depths must lie in [0, {length:g}] m, got {np.asarray(depths_m)!r}"])
     x = np.clip(x, 0.0, length)
     ks = {}

@@ -84,9 +84,7 @@ _AIR_WORD = re.compile(r"\bair\b", re.IGNORECASE)
 
 def _check_direction(direction: str) -> str:
     if direction not in DIRECTIONS:
-        raise StudyError(
-            [f"direction: unknown heat-flow direction {direction!r}; {closest(direction, DIRECTIONS)}"]
-        )
+        raise StudyError([f"direction: unknown heat-flow direction {direction!r}; {closest(direction, DIRECTIONS)}"])
     return direction
 
 
@@ -106,9 +104,7 @@ def normalize_ventilation(ventilation: str, where: str = "ventilation") -> str:
     key = key.replace("_", " ")
     if key in VENTILATION:
         return VENTILATION[key]
-    raise StudyError(
-        [f"{where}: unknown ventilation {ventilation!r}; {closest(str(ventilation), VENTILATION)}"]
-    )
+    raise StudyError([f"{where}: unknown ventilation {ventilation!r}; {closest(str(ventilation), VENTILATION)}"])
 
 
 def surface_resistances(direction: str = "horizontal") -> tuple[float, float]:
@@ -158,9 +154,7 @@ def unventilated_air_layer_resistance(thickness_m, direction: str = "horizontal"
     return float(r) if np.ndim(r) == 0 else r
 
 
-def air_layer_resistance(
-    thickness_m: float, ventilation: str = "unventilated", direction: str = "horizontal"
-):
+def air_layer_resistance(thickness_m: float, ventilation: str = "unventilated", direction: str = "horizontal"):
     """Thermal resistance of the air layer alone [m2K/W].
 
     Parameters
@@ -372,10 +366,7 @@ def thermal_resistance(
         av = float(opening_area_mm2_per_m)
         if len(slight) != 1:
             raise StudyError(
-                [
-                    "opening_area_mm2_per_m: needs exactly one slightly ventilated air layer, "
-                    f"found {len(slight)}"
-                ]
+                [f"opening_area_mm2_per_m: needs exactly one slightly ventilated air layer, found {len(slight)}"]
             )
         if av <= 500.0:
             air[wall.layers[slight[0]].id] = "unventilated"
@@ -438,20 +429,14 @@ def thermal_resistance(
             r, kind = _material_resistance(layer, mean_temperature_C)
             breakdown.append(LayerResistance(layer.id, r, kind))
         if layer.contact_resistance and i < len(wall.layers) - 1:
-            breakdown.append(
-                LayerResistance(f"{layer.id}/contact", float(layer.contact_resistance), "contact")
-            )
+            breakdown.append(LayerResistance(f"{layer.id}/contact", float(layer.contact_resistance), "contact"))
 
     if slight:
         if len(slight) > 1:
-            raise StudyError(
-                [f"air_layers: {len(slight)} slightly ventilated air layers; ISO 6946 treats one"]
-            )
+            raise StudyError([f"air_layers: {len(slight)} slightly ventilated air layers; ISO 6946 treats one"])
         k = slight[0]
         lid = wall.layers[k].id
-        notes.append(
-            f"slightly ventilated air layer {lid!r}: half the Table 8 value (ISO 6946:1996 5.3.3 rule)"
-        )
+        notes.append(f"slightly ventilated air layer {lid!r}: half the Table 8 value (ISO 6946:1996 5.3.3 rule)")
         # resistance between the air layer and the external environment (exterior layers + Rse)
         ids_outside = {layer.id for layer in wall.layers[:k]}
         outside = [b for b in breakdown if b.id.split("/")[0] in ids_outside]
@@ -459,9 +444,7 @@ def thermal_resistance(
         if r_out > SLIGHTLY_VENTILATED_EXTERIOR_CAP:
             scale = (SLIGHTLY_VENTILATED_EXTERIOR_CAP - rse) / (r_out - rse) if r_out > rse else 0.0
             if SLIGHTLY_VENTILATED_EXTERIOR_CAP < rse:
-                raise StudyError(
-                    [f"rse: {rse!r} m2K/W exceeds the 0.15 m2K/W cap of a slightly ventilated layer"]
-                )
+                raise StudyError([f"rse: {rse!r} m2K/W exceeds the 0.15 m2K/W cap of a slightly ventilated layer"])
             breakdown = [
                 LayerResistance(b.id, b.resistance * scale, b.kind + "(capped)") if b in outside else b
                 for b in breakdown
@@ -524,7 +507,5 @@ def resolve_layers(wall, *, air_layers: Mapping[str, str] | None = None, directi
             out.append(layer)
         else:
             r = air_layer_resistance(layer.thickness, vent, direction)
-            out.append(
-                layer.replace(thermal_resistance=r, conductivity=None, density=None, specific_heat=None)
-            )
+            out.append(layer.replace(thermal_resistance=r, conductivity=None, density=None, specific_heat=None))
     return out, cut

@@ -229,18 +229,12 @@ def _as_series(name, values, n=None):
     if n is not None and a.size != n:
         raise DataError(f"{name}: has {a.size} values, times_s has {n}")
     if np.any(~np.isfinite(a)):
-        raise DataError(
-            f"{name}: contains NaN or infinite values at index {int(np.flatnonzero(~np.isfinite(a))[0])}"
-        )
+        raise DataError(f"{name}: contains NaN or infinite values at index {int(np.flatnonzero(~np.isfinite(a))[0])}")
     return a
 
 
 def _ratio(r, ref):
-    return (
-        float(abs(r - ref) / abs(ref))
-        if ref not in (0.0,) and np.isfinite(ref) and np.isfinite(r)
-        else np.inf
-    )
+    return float(abs(r - ref) / abs(ref)) if ref not in (0.0,) and np.isfinite(ref) and np.isfinite(r) else np.inf
 
 
 def average_method(

@@ -51,9 +51,18 @@ class ManualCalibration:
 
             try:
                 space = parse_space(self.study)
-                self.params = [{"name": p.name, "property": p.property,
-                                "layers": [self.study.wall.layers[i].id for i in p.layers], "probe": p.probe,
-                                "base": p.base, "lower": p.lower, "upper": p.upper} for p in space.parameters]
+                self.params = [
+                    {
+                        "name": p.name,
+                        "property": p.property,
+                        "layers": [self.study.wall.layers[i].id for i in p.layers],
+                        "probe": p.probe,
+                        "base": p.base,
+                        "lower": p.lower,
+                        "upper": p.upper,
+                    }
+                    for p in space.parameters
+                ]
             except WallcalError:
                 self.params = []
 
@@ -62,20 +71,36 @@ class ManualCalibration:
         s = self.study
         layers = []
         for layer in s.wall.layers:
-            d = {"id": layer.id, "material": layer.material, "thickness": layer.thickness,
-                 "massless": layer.is_massless}
+            d = {
+                "id": layer.id,
+                "material": layer.material,
+                "thickness": layer.thickness,
+                "massless": layer.is_massless,
+            }
             for prop in EDITABLE:
                 v = getattr(layer, prop)
                 d[prop] = None if v is None else float(v)
             layers.append(d)
-        sensors = [{"name": x.name, "quantity": x.quantity,
-                    "unit": "W/m2" if x.quantity == "heat_flux" else "degC",
-                    "accuracy": x.accuracy, "accuracy_relative": x.accuracy_relative} for x in s.sensors]
+        sensors = [
+            {
+                "name": x.name,
+                "quantity": x.quantity,
+                "unit": "W/m2" if x.quantity == "heat_flux" else "degC",
+                "accuracy": x.accuracy,
+                "accuracy_relative": x.accuracy_relative,
+            }
+            for x in s.sensors
+        ]
         times = [int(t.value // 1_000_000) for t in self.base.measured.index]  # ms since epoch (naive local)
         return {
-            "name": s.name, "wall": s.wall.name, "study": str(self.study_path), "layers": layers,
+            "name": s.name,
+            "wall": s.wall.name,
+            "study": str(self.study_path),
+            "layers": layers,
             "probes": [{"name": p.name, "depth": p.depth} for p in s.wall.probes],
-            "parameters": self.params, "sensors": sensors, "times": times,
+            "parameters": self.params,
+            "sensors": sensors,
+            "times": times,
             "measured": {x.name: _clean(self.base.measured[x.name].to_numpy()) for x in s.sensors},
             "base": self._payload(self.base, 0.0),
         }
@@ -91,8 +116,11 @@ class ManualCalibration:
                 if prop not in EDITABLE:
                     raise WallcalError(f"layers.{lid}.{prop}: not an editable property")
                 v = float(v)
-                if not math.isfinite(v) or (prop in ("conductivity", "density", "specific_heat") and v <= 0) \
-                        or (prop == "contact_resistance" and v < 0):
+                if (
+                    not math.isfinite(v)
+                    or (prop in ("conductivity", "density", "specific_heat") and v <= 0)
+                    or (prop == "contact_resistance" and v < 0)
+                ):
                     raise WallcalError(f"layers.{lid}.{prop}: invalid value {v}")
                 changes[prop] = v
             wall = wall.replace_layer(lid, **changes)
@@ -118,8 +146,10 @@ class ManualCalibration:
         name = Path(str(body.get("file") or "manual_wall.toml")).name
         if not name.endswith(".toml"):
             name += ".toml"
-        text = dump_wall(wall.replace(name=(wall.name or "wall") + " (manual calibration)"),
-                         f"saved by wallcal serve from {self.study_path.name}")
+        text = dump_wall(
+            wall.replace(name=(wall.name or "wall") + " (manual calibration)"),
+            f"saved by wallcal serve from {self.study_path.name}",
+        )
         path = write_text_atomic(self.study_path.parent / name, text)
         return {"path": str(path), "toml": text}
 
