@@ -129,7 +129,13 @@ def _summary(study, outputs) -> str:
             f"{col}: U {u[col]:.3f} W/(m2K), decrement factor {f[col]:.3f}, time shift {shift[col]:.1f} h"
             for col in wf.columns
         )
-        items.append("<b>Wall figures.</b> " + html.escape(txt) + ".")
+        caveat = ""
+        if i and i.status == "ok" and i.text and "common_scale" in i.text[0]:
+            caveat = (
+                " The calibrated U rests on a direction the temperatures cannot fix (the common scale of all "
+                "conductivities and heat capacities): add a heat-flux sensor to the targets to identify it."
+            )
+        items.append("<b>Wall figures.</b> " + html.escape(txt + "." + caveat))
     failed = [o for o in outputs if o.status == "failed"]
     if failed:
         items.append(

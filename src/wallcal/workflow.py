@@ -324,7 +324,14 @@ def _stage_identifiability(ctx: RunContext, d: Path, so: StageOutput):
     res.write_into(d)
     so.files += ["identifiability.json", "targets_comparison.csv", "singular_values.png"]
     a = res.main
-    flat = [f"{k}: {r['in words']}" for k, r in a.flat.iterrows()] if len(a.flat) else []
+    flat = []
+    if len(a.flat):
+        rho_c = [str(k)[len("rho_c") + 1 : -1] for k in a.flat.index if str(k).startswith("rho_c[")]
+        if rho_c:
+            flat.append(
+                f"rho*c of layers {', '.join(rho_c)} (density and specific heat act only through their product)"
+            )
+        flat += [f"{k}: {r['in words']}" for k, r in a.flat.iterrows() if not str(k).startswith("rho_c[")]
     so.text.append(
         f"{a.rank} of {a.n} parameter directions are identifiable from {'+'.join(a.targets)} at the "
         f"{res.at}" + (f"; flat directions: {'; '.join(flat)}" if flat else "; no flat direction") + "."
