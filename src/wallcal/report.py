@@ -60,11 +60,11 @@ def table_html(df: pd.DataFrame, percent: tuple[str, ...] = ()) -> str:
     head = "".join(f'<th class="l">{html.escape(str(n))}</th>' for n in idx_names)
     head += "".join(f"<th>{html.escape(str(c))}{' %' if c in percent else ''}</th>" for c in df.columns)
     rows = []
-    for idx, r in df.iterrows():
+    for tup in df.itertuples(index=True, name=None):  # keeps each column's own type (counts stay integers)
+        idx, values = tup[0], tup[1:]
         idx_t = idx if isinstance(idx, tuple) else (idx,)
         cells = "".join(f'<td class="l">{html.escape(str(i))}</td>' for i in idx_t)
-        for c in df.columns:
-            v = r[c]
+        for c, v in zip(df.columns, values, strict=True):
             if c in percent and isinstance(v, (float, np.floating)) and not math.isnan(v):
                 cells += f"<td>{100 * float(v):.1f}</td>"
             else:
