@@ -31,29 +31,15 @@ import numpy as np
 import pandas as pd
 
 from .errors import OptionalDependencyError, StudyError, closest
+from .metrics import METRIC_COLUMNS
 from .study import Study
 
 #: Engine names :func:`compare_engines` accepts.
 COMPARE_ENGINES = ("fd-cn", "fd-implicit", "energyplus", "energyplus-cn", "energyplus-implicit")
 #: Metrics shown in Table IV (rows per sensor), in this order.
 TABLE_IV_METRICS = ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14")
-#: Long-table metric columns (``comparison.csv``).
-LONG_COLUMNS = (
-    "engine",
-    "signal",
-    "unit",
-    "n",
-    "rmse",
-    "rn_rmse",
-    "cv_rmse_eff",
-    "mbe",
-    "nmbe",
-    "cv_rmse_g14",
-    "mae",
-    "max_abs_error",
-    "accuracy",
-    "within_accuracy",
-)
+#: Long-table metric columns (``comparison.csv``): engine, signal, unit, then every metric.
+LONG_COLUMNS = ("engine", "signal", "unit") + tuple(METRIC_COLUMNS[1:])
 
 
 @dataclass
