@@ -789,40 +789,24 @@ def build_idf(
         )
     )
     o.append(idf_object("ScheduleTypeLimits", [("Any Number", "Name")]))
-    o.append(
-        idf_object(
-            "Schedule:File",
-            [
-                ("T_other_side", "Name"),
-                ("Any Number", "Schedule Type Limits Name"),
-                (schedule_file, "File Name"),
-                (1, "Column Number"),
-                (1, "Rows to Skip at Top"),
-                (8760, "Number of Hours of Data"),
-                ("Comma", "Column Separator"),
-                ("No", "Interpolate to Timestep"),
-                (minutes_per_item, "Minutes per Item"),
-                ("No", "Adjust Schedule for Daylight Savings"),
-            ],
+    for name, column in (("T_other_side", 1), ("T_zone_setpoint", 2)):  # the two columns of one schedule file
+        o.append(
+            idf_object(
+                "Schedule:File",
+                [
+                    (name, "Name"),
+                    ("Any Number", "Schedule Type Limits Name"),
+                    (schedule_file, "File Name"),
+                    (column, "Column Number"),
+                    (1, "Rows to Skip at Top"),
+                    (8760, "Number of Hours of Data"),
+                    ("Comma", "Column Separator"),
+                    ("No", "Interpolate to Timestep"),
+                    (minutes_per_item, "Minutes per Item"),
+                    ("No", "Adjust Schedule for Daylight Savings"),
+                ],
+            )
         )
-    )
-    o.append(
-        idf_object(
-            "Schedule:File",
-            [
-                ("T_zone_setpoint", "Name"),
-                ("Any Number", "Schedule Type Limits Name"),
-                (schedule_file, "File Name"),
-                (2, "Column Number"),
-                (1, "Rows to Skip at Top"),
-                (8760, "Number of Hours of Data"),
-                ("Comma", "Column Separator"),
-                ("No", "Interpolate to Timestep"),
-                (minutes_per_item, "Minutes per Item"),
-                ("No", "Adjust Schedule for Daylight Savings"),
-            ],
-        )
-    )
     o.append(
         idf_object(
             "Schedule:Constant",
