@@ -248,6 +248,15 @@ def test_lambda_table_equals_exponential_when_dense():
 
 
 # ---------------------------------------------------------------------------- energy balance
+def daily_inputs(ext, intr, days=2, dt=60.0):
+    """Two days of 24-h sine boundary inputs at dt [s]: temperatures [degC] or heat fluxes [W/m2]."""
+    t = np.arange(int(days * 86400 / dt) + 1) * dt
+    s = np.sin(2 * np.pi * t / 86400)
+    ue = 20 * s if ext == "heat_flux" else 5 + 10 * s
+    ui = -3 + s if intr == "heat_flux" else 20 + s
+    return ue, ui
+
+
 @pytest.mark.parametrize("scheme", ["cn", "implicit"])
 @pytest.mark.parametrize(
     "ext,intr",
@@ -260,9 +269,7 @@ def test_lambda_table_equals_exponential_when_dense():
 def test_energy_balance_closes(scheme, ext, intr):
     wall = three_layer_wall()
     wall = wall.replace_layer("wool", conductivity_temperature_coefficient=0.005)
-    t = np.arange(2 * 1440 + 1) * 60.0
-    ue = 5 + 10 * np.sin(2 * np.pi * t / 86400) if ext != "heat_flux" else 20 * np.sin(2 * np.pi * t / 86400)
-    ui = 20 + np.sin(2 * np.pi * t / 86400)
+    ue, ui = daily_inputs(ext, intr)
     inp = make_input(wall, ue, ui, 60.0, scheme=scheme, ext=ext, intr=intr, h_e=25.0, h_i=7.7)
     out = run(inp, path="general")
     assert abs(out.info["energy_residual_J_m2"]) < 1e-9 * out.info["energy_throughput_J_m2"]
@@ -332,9 +339,7 @@ def test_cn_does_not_ring_with_a_thin_metal_sheet():
 def test_modal_fast_path_equals_general_path(scheme, ext, intr):
     wall = three_layer_wall()
     wall = wall.replace_layer("brick", contact_resistance=0.05)
-    t = np.arange(2 * 1440 + 1) * 60.0
-    ue = 5 + 10 * np.sin(2 * np.pi * t / 86400) if ext != "heat_flux" else 20 * np.sin(2 * np.pi * t / 86400)
-    ui = 20 + np.sin(2 * np.pi * t / 86400) if intr != "heat_flux" else -3 + np.sin(2 * np.pi * t / 86400)
+    ue, ui = daily_inputs(ext, intr)
     inp = make_input(wall, ue, ui, 60.0, scheme=scheme, ext=ext, intr=intr, h_e=25.0, h_i=7.7, out_every=5)
     inp = inp.__class__(**{**inp.__dict__, "output_positions": inp.output_positions + 0.4})
     inp = inp.__class__(**{**inp.__dict__, "output_positions": inp.output_positions[:-1]})
