@@ -302,27 +302,15 @@ class PreparedFD:
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
     # ------------------------------------------------------------------ fast path
-    def _modal_steps(self) -> np.ndarray:
-        if getattr(self, "_s", None) is None:
-            th = self.theta
-            s = np.empty((len(self.ue) - 1, 2))
-            s[:, 0] = th * self.ue[1:] + (1 - th) * self.ue[:-1]
-            s[:, 1] = th * self.ui[1:] + (1 - th) * self.ui[:-1]
-            self._s = s
-        return self._s
-
-    def _output_plan(self):
+    def _output_plan(self) -> modal.ModalPlan:
         if getattr(self, "_plan", None) is None:
-            self._plan = modal.output_plan(
-                self.out_step, self.out_w, len(self.ue) - 1, self.theta, self.ue, self.ui, self.dt
-            )
+            self._plan = modal.modal_plan(self.out_step, self.out_w, self.theta, self.ue, self.ui, self.dt)
         return self._plan
 
     def _run_modal(self, cap, g, pa, pb, pw, initial_state, n_forced, rows=None) -> BatchResult:
         nc, n_nodes = cap.shape
         want = np.ones(pa.shape[1] + 2, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        base, wp, wf, feat = self._output_plan()
         run = modal.modal_serial if nc == 1 else modal.modal_batch
         out, tend = run(
             cap,
@@ -334,13 +322,9 @@ class PreparedFD:
             self.bc_h,
             self.theta,
             self.dt,
-            self._modal_steps(),
             self.ue,
             self.ui,
-            base,
-            wp,
-            wf,
-            feat,
+            self._output_plan(),
             want,
             t0,
         )

@@ -14,8 +14,25 @@ with ``V^T Cap V = I``. Each mode then follows the real first-order recursion
     r_k = (V^T p)_k / (1/dt + theta lambda_k),  s^n = theta u^{n+1} + (1 - theta) u^n,
 
 which is the same linear algebra as the tridiagonal solve (results agree to
-round-off), at two multiply-adds per mode and step (the modes are independent,
-so the loop over modes vectorises).
+round-off), at three multiply-adds per mode and step; the modes are
+independent, so the loop over them vectorises, and the state stays in
+registers for several steps per pass, so the recursion runs at the machine's
+multiply-add throughput.
+
+Outputs. An output at grid time ``nk + w`` is a probe row over
+``(1 - w) T^nk + w T^{nk+1}``, or a face-flux row over the energy-consistent
+two-step average of the states ``nk - 1 .. nk + 2`` (see
+:mod:`wallcal.engines.kernels`), plus terms in the boundary inputs. It is formed
+from the state at its *anchor* ``base = max(nk - 1, 0)``: the later states are
+``mu^j z + (inputs)``, so each output row is
+
+    y = Ge . z^base + H . (s^base, s^base+1, s^base+2) + D . feat,
+
+where ``Ge = G diag(P(mu))`` and ``H`` depend on the candidate and on the
+output's weight *pattern* (a few: interior, first and last output times; an
+output between grid times combines two) and are computed once per candidate.
+An output then costs one multiply-add per mode and requested row, fused into
+the pass over the modes that steps on to the next anchor.
 
 Per candidate (everything inside the numba batch loop, in parallel over candidates):
 
@@ -27,25 +44,25 @@ Per candidate (everything inside the numba batch loop, in parallel over candidat
    outputs need (both ends, the probes' nodes) and recorded, so that the initial
    and final states can be mapped with them. O(m^2) instead of the O(m^3) of a
    dense ``eigh``, and no LAPACK/BLAS call (no threads of its own inside numba's).
-3. The recursion runs from one output's base step to the next, four steps per
-   pass over the modes (:func:`_advance`); at each output the states of the next
-   three steps are stepped on mode by mode and combined with the output's weights
-   (:func:`_form`). Memory does not depend on the number of steps.
-
-Outputs: an output at grid time ``nk + w`` is a probe row over ``(1 - w) T^nk + w T^{nk+1}``
-or a face-flux row over the energy-consistent two-step average of the states
-``nk - 1 .. nk + 2`` (see :mod:`wallcal.engines.kernels`), plus terms in the
-boundary inputs. These weights and input terms are the same for every candidate;
-:func:`output_plan` computes them once per prepared simulation.
+3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
+   over the steps: between two anchors five steps apart (5-minute data at
+   1-minute steps), one loop over the modes forms the anchor's output rows and
+   steps five times (:func:`_dots_step5`); otherwise the rows are formed
+   (:func:`_form`) and the state is stepped four steps per pass (:func:`_advance`).
+   Memory does not depend on the number of steps.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 #: columns of the per-output input features (see :func:`output_plan`)
 N_FEAT = 6
+#: output rows formed in the fused pass (more requested rows are formed by :func:`_form`)
+N_FUSED = 5
 
 
 @njit(cache=True)
@@ -160,18 +177,50 @@ def apply_wt(nrot, rot_i, rot_cs, x):
         x[i + 1] = s * a + c * b
 
 
+class ModalPlan(NamedTuple):
+    """What the modal kernel needs besides the candidate: the same for every candidate.
+
+    For k outputs: ``base`` (k,) anchor step; ``opat`` (k, 2) and ``ow`` (k, 2), the weight
+    patterns of the grid times ``nk`` and ``nk + 1`` and their weights ``1 - w`` and ``w``; ``wp``,
+    ``wf`` (n_pat, 4), the weights of the states ``base + 0 .. 3`` in probe rows and in face-flux
+    rows for each pattern; ``feat`` (6, k), the input terms of :func:`output_plan`; ``sw`` (6, k),
+    the theta-weighted inputs ``s`` of the steps ``base .. base + 2`` (channels interleaved);
+    ``pmain`` (1,), the pattern of most outputs and ``mainw`` (k,) its weight in each output, and
+    the other (output, pattern, weight) contributions ``xk, xp, xw``; ``s`` (n_steps, 2), the
+    theta-weighted inputs of every step. (Per-output arrays are stored output-last, so that the
+    input terms of all outputs are added in one vectorised pass.)
+    """
+
+    base: np.ndarray
+    opat: np.ndarray
+    ow: np.ndarray
+    wp: np.ndarray
+    wf: np.ndarray
+    feat: np.ndarray
+    sw: np.ndarray
+    pmain: np.ndarray
+    mainw: np.ndarray
+    xk: np.ndarray
+    xp: np.ndarray
+    xw: np.ndarray
+    s: np.ndarray
+
+
 def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
-    """Per-output state weights and input features (the same for every candidate).
+    """Per-output weight patterns and input features (the same for every candidate).
 
     Output k lies between grid times ``nk`` and ``nk + 1`` (``nk + w``). It depends on the states
-    ``base .. base + 3`` with ``base = max(nk - 1, 0)``.
+    ``base .. base + 3`` with ``base = max(nk - 1, 0)``, through the patterns of the two grid times
+    (weights ``1 - w`` and ``w``): probe rows are linear in time, face-flux rows use the
+    energy-consistent average ``q^j = (F^{j-1/2} + F^{j+1/2}) / 2`` (one-sided at the ends).
 
     Returns
     -------
     base : (k,) int
-    wp, wf : (k, 4)
-        Weights of the states ``base + 0 .. 3`` in probe rows (linear in time) and in face-flux
-        rows (energy-consistent average ``q^j = (F^{j-1/2} + F^{j+1/2}) / 2``, one-sided at the ends).
+    opat, ow : (k, 2) int, (k, 2) float
+        The patterns of grid times ``nk`` and ``nk + 1`` and their weights.
+    wp, wf : (n_pat, 4)
+        Weights of the states ``base + 0 .. 3`` in probe rows and in face-flux rows, per pattern.
     feat : (k, 6)
         Input terms: ``u_e, u_i`` interpolated in time (probe rows on a known face node), then the
         same two-step averages of ``u_e, u_i`` and of their central differences ``du/dt`` (flux rows).
@@ -180,30 +229,82 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
     w = np.asarray(out_w, dtype=float)
     n_out = len(nk)
     base = np.maximum(nk - 1, 0)
-    wp = np.zeros((n_out, 4))
-    wf = np.zeros((n_out, 4))
     feat = np.zeros((n_out, N_FEAT))
     rows = np.arange(n_out)
-    np.add.at(wp, (rows, nk - base), 1.0 - w)
-    np.add.at(wp, (rows, nk + 1 - base), w)
     feat[:, 0] = (1.0 - w) * ue[nk] + w * ue[nk + 1]
     feat[:, 1] = (1.0 - w) * ui[nk] + w * ui[nk + 1]
+    pats = np.zeros((2, n_out, 8))  # per grid time nk + jj: probe weights (4), flux weights (4)
     for jj in (0, 1):
         j = nk + jj
         wt = (1.0 - w) if jj == 0 else w
+        pats[jj, rows, j - base] = 1.0
         a = np.where(j == 0, 0.0, np.where(j >= n_steps, 1.0 - theta, 0.5 * (1.0 - theta)))
         b = np.where(j == 0, 1.0 - theta, np.where(j >= n_steps, theta, 0.5))
         c = np.where(j == 0, theta, np.where(j >= n_steps, 0.0, 0.5 * theta))
         jm = np.maximum(j - 1, 0)
         jp = np.minimum(j + 1, n_steps)
         for coef, jx in ((a, jm), (b, j), (c, jp)):
-            np.add.at(wf, (rows, jx - base), wt * coef)
+            np.add.at(pats[jj], (rows, 4 + jx - base), coef)
         feat[:, 2] += wt * (a * ue[jm] + b * ue[j] + c * ue[jp])
         feat[:, 3] += wt * (a * ui[jm] + b * ui[j] + c * ui[jp])
         inv = 1.0 / ((jp - jm) * dt)
         feat[:, 4] += wt * (ue[jp] - ue[jm]) * inv
         feat[:, 5] += wt * (ui[jp] - ui[jm]) * inv
-    return base, wp, wf, feat
+    if n_out:
+        uniq, inv_idx = np.unique(pats.reshape(2 * n_out, 8), axis=0, return_inverse=True)
+    else:
+        uniq, inv_idx = np.zeros((0, 8)), np.zeros(0, dtype=np.int64)
+    opat = np.ascontiguousarray(inv_idx.reshape(2, n_out).T, dtype=np.int64)
+    ow = np.ascontiguousarray(np.column_stack([1.0 - w, w]))
+    wp = np.ascontiguousarray(uniq[:, :4])
+    wf = np.ascontiguousarray(uniq[:, 4:])
+    return base, opat, ow, wp, wf, feat
+
+
+def modal_plan(out_step, out_w, theta, ue, ui, dt) -> ModalPlan:
+    """The plan of the modal kernel (:class:`ModalPlan`) for one prepared simulation."""
+    ue = np.asarray(ue, dtype=float)
+    ui = np.asarray(ui, dtype=float)
+    n_steps = len(ue) - 1
+    s = np.empty((n_steps, 2))
+    s[:, 0] = theta * ue[1:] + (1.0 - theta) * ue[:-1]
+    s[:, 1] = theta * ui[1:] + (1.0 - theta) * ui[:-1]
+    base, opat, ow, wp, wf, feat = output_plan(out_step, out_w, n_steps, theta, ue, ui, dt)
+    if len(base) > 1 and (np.diff(base) < 0).any():
+        raise ValueError("output times must be in increasing order")
+    sw = np.zeros((len(base), 6))
+    if n_steps:
+        for i in range(3):
+            j = np.minimum(base + i, n_steps - 1)  # beyond the end the weights are 0
+            sw[:, 2 * i] = s[j, 0]
+            sw[:, 2 * i + 1] = s[j, 1]
+    # the pattern of most outputs is handled densely, the others (first and last outputs, outputs
+    # between grid times) as a short list of (output, pattern, weight)
+    n_out = len(base)
+    ks = np.concatenate([np.arange(n_out), np.arange(n_out)])
+    ps = np.concatenate([opat[:, 0], opat[:, 1]])
+    ws = np.concatenate([ow[:, 0], ow[:, 1]])
+    used = ws != 0.0
+    main = int(np.bincount(ps[used], minlength=1).argmax()) if used.any() else 0
+    mainw = np.zeros(n_out)
+    is_main = used & (ps == main)
+    np.add.at(mainw, ks[is_main], ws[is_main])
+    rest = used & (ps != main)
+    return ModalPlan(
+        base,
+        opat,
+        ow,
+        wp,
+        wf,
+        np.ascontiguousarray(feat.T),
+        np.ascontiguousarray(sw.T),
+        np.array([main], dtype=np.int64),
+        mainw,
+        ks[rest].astype(np.int64),
+        ps[rest].astype(np.int64),
+        ws[rest],
+        s,
+    )
 
 
 @njit(cache=True)
@@ -275,7 +376,177 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
 
 
 @njit(cache=True, fastmath=True)
-def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, want, out, t0, tend):
+def _pattern_coefficients(mu, r0, r1, G, npr, rq, wp, wf, Ge, H):
+    """Per output pattern and requested row: ``Ge = G P(mu)`` over the anchor state and ``H``, the
+    coefficients of ``s`` at steps base .. base + 2 (channels interleaved); see the module docstring."""
+    m = mu.shape[0]
+    P = np.empty(m)
+    Q = np.empty((3, m))
+    for p in range(wp.shape[0]):
+        for q in rq:
+            w = wp[p] if q < npr else wf[p]
+            for k in range(m):
+                u = mu[k]
+                P[k] = w[0] + u * (w[1] + u * (w[2] + u * w[3]))
+                Q[0, k] = w[1] + u * (w[2] + u * w[3])
+                Q[1, k] = w[2] + u * w[3]
+                Q[2, k] = w[3]
+            for k in range(m):
+                Ge[p, q, k] = G[q, k] * P[k]
+            for i in range(3):
+                h0 = 0.0
+                h1 = 0.0
+                for k in range(m):
+                    gq = G[q, k] * Q[i, k]
+                    h0 += gq * r0[k]
+                    h1 += gq * r1[k]
+                H[p, q, 2 * i] = h0
+                H[p, q, 2 * i + 1] = h1
+
+
+@njit(cache=True, fastmath=True, inline="always")
+def _advance(z, mu, r0, r1, s, n_from, n_to):
+    """Advance the modal state from grid time n_from to n_to (in place).
+
+    Four steps per pass over the modes (the state stays in registers in between), then
+    single steps; the loop over modes vectorises.
+    """
+    m = z.shape[0]
+    n = n_from
+    while n + 4 <= n_to:
+        a0 = s[n, 0]
+        a1 = s[n, 1]
+        b0 = s[n + 1, 0]
+        b1 = s[n + 1, 1]
+        c0 = s[n + 2, 0]
+        c1 = s[n + 2, 1]
+        d0 = s[n + 3, 0]
+        d1 = s[n + 3, 1]
+        for k in range(m):
+            u = mu[k]
+            p = r0[k]
+            q = r1[k]
+            zk = u * z[k] + (p * a0 + q * a1)
+            zk = u * zk + (p * b0 + q * b1)
+            zk = u * zk + (p * c0 + q * c1)
+            z[k] = u * zk + (p * d0 + q * d1)
+        n += 4
+    while n < n_to:
+        a0 = s[n, 0]
+        a1 = s[n, 1]
+        for k in range(m):
+            z[k] = mu[k] * z[k] + (r0[k] * a0 + r1[k] * a1)
+        n += 1
+
+
+@njit(cache=True, fastmath=True, inline="always")
+def _dots_step5(z, mu, r0, r1, s, n, g0, g1, g2, g3, g4):
+    """The dot products of the state at grid time n with five output rows ``g0 .. g4`` (1-D, padded
+    with a zero row), and five steps on (to n + 5), in one pass over the modes. (The rows are passed
+    as 1-D arrays: indexing a 3-D array by runtime rows inside the loop keeps it from vectorising.)"""
+    m = z.shape[0]
+    a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
+    b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
+    d0 = 0.0
+    d1 = 0.0
+    d2 = 0.0
+    d3 = 0.0
+    d4 = 0.0
+    for k in range(m):
+        zk = z[k]
+        d0 += g0[k] * zk
+        d1 += g1[k] * zk
+        d2 += g2[k] * zk
+        d3 += g3[k] * zk
+        d4 += g4[k] * zk
+        u = mu[k]
+        e = r0[k]
+        f = r1[k]
+        zk = u * zk + (e * a0 + f * b0)
+        zk = u * zk + (e * a1 + f * b1)
+        zk = u * zk + (e * a2 + f * b2)
+        zk = u * zk + (e * a3 + f * b3)
+        z[k] = u * zk + (e * a4 + f * b4)
+    return d0, d1, d2, d3, d4
+
+
+@njit(cache=True, fastmath=True, inline="always")
+def _form(k_out, z, Ge, rq, opat, ow, out):
+    """The state part of output k_out from the state at its anchor: a dot product per requested
+    row and pattern (the input terms are added by :func:`_input_terms`)."""
+    m = z.shape[0]
+    for q in rq:
+        acc = 0.0
+        for c2 in range(2):
+            wgt = ow[k_out, c2]
+            if wgt == 0.0:
+                continue
+            gq = Ge[opat[k_out, c2], q]
+            dot = 0.0
+            for k in range(m):
+                dot += gq[k] * z[k]
+            acc += wgt * dot
+        out[q, k_out] = acc
+
+
+@njit(cache=True, fastmath=True)
+def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
+    """Add the input terms of every output, ``sum_p w_p H[p, q] . sw + D[q] . feat``: the main
+    pattern and the non-zero ``D`` coefficients in passes vectorised over the outputs, the other
+    patterns' few contributions one by one."""
+    n_out = out.shape[1]
+    p = pmain[0]
+    for q in rq:
+        oq = out[q]
+        h0, h1, h2, h3, h4, h5 = H[p, q, 0], H[p, q, 1], H[p, q, 2], H[p, q, 3], H[p, q, 4], H[p, q, 5]
+        for k in range(n_out):
+            oq[k] += mainw[k] * (
+                (h0 * sw[0, k] + h1 * sw[1, k]) + (h2 * sw[2, k] + h3 * sw[3, k]) + (h4 * sw[4, k] + h5 * sw[5, k])
+            )
+        for c in range(N_FEAT):
+            d = D[q, c]
+            if d != 0.0:
+                for k in range(n_out):
+                    oq[k] += d * feat[c, k]
+        for j in range(xk.shape[0]):
+            k = xk[j]
+            acc = 0.0
+            for i in range(6):
+                acc += H[xp[j], q, i] * sw[i, k]
+            oq[k] += xw[j] * acc
+
+
+@njit(cache=True, fastmath=True)
+def _modal_one(
+    cap,
+    g,
+    pa,
+    pb,
+    pw,
+    bc_type,
+    bc_h,
+    theta,
+    dt,
+    ue,
+    ui,
+    base,
+    opat,
+    ow,
+    wp,
+    wf,
+    feat,
+    sw,
+    pmain,
+    mainw,
+    xk,
+    xp,
+    xw,
+    s,
+    want,
+    out,
+    t0,
+    tend,
+):
     """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,).
 
     ``want`` (n_q,) bool: the output rows to form (others are left NaN); fewer rows need fewer
@@ -286,15 +557,30 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp
     m = (n_nodes - 1 if bc_type[1] == 0 else n_nodes) - j0
     npr = pa.shape[0]
     n_q = npr + 2
+    n_steps = ue.shape[0] - 1
     kd = np.empty(m)
     ko = np.empty(m)
     G_nodes = np.empty((n_q, m))
     D = np.empty((n_q, N_FEAT))
     pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
+    n_rq = 0
     for q in range(n_q):
-        if not want[q]:
+        if want[q]:
+            n_rq += 1
+        else:
             for i in range(m):
                 G_nodes[q, i] = 0.0
+    rq = np.empty(n_rq, dtype=np.int64)
+    fq = np.full(N_FUSED, n_q, dtype=np.int64)  # fused rows, padded with the zero row n_q
+    n_rq = 0
+    for q in range(n_q):
+        if want[q]:
+            rq[n_rq] = q
+            if n_rq < N_FUSED:
+                fq[n_rq] = q
+            n_rq += 1
+        else:
+            out[q, :] = np.nan
     # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
     dinv = np.empty(m)
     for i in range(m):
@@ -358,116 +644,54 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp
                 c = col[i]
                 for k in range(m):
                     G[q, k] += h * zt[k, c]
-    # the recursion only stops at each output's base step; the output is formed from that state
+    # per output pattern: Ge = G P(mu) and H (row n_q stays zero: the padding of the fused rows)
+    n_pat = wp.shape[0]
+    Ge = np.zeros((n_pat, n_q + 1, m))
+    H = np.zeros((n_pat, n_q + 1, 6))
+    _pattern_coefficients(mu, r0, r1, G, npr, rq, wp, wf, Ge, H)
+    # one pass over the steps, stopping at each anchor
     n_out = base.shape[0]
-    n_steps = s.shape[0]
-    zp = np.empty(m)
-    zf = np.empty(m)
     cur = 0
-    for k_out in range(n_out):
-        _advance(z, mu, r0, r1, s, cur, base[k_out])
-        cur = base[k_out]
-        nxt = base[k_out + 1] if k_out + 1 < n_out else n_steps
-        move = cur + 3 <= nxt
-        _form(k_out, cur, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, want, zp, zf, out)
-        if move:
-            cur += 3
+    k_out = 0
+    while k_out < n_out:
+        b = base[k_out]
+        _advance(z, mu, r0, r1, s, cur, b)
+        cur = b
+        k2 = k_out + 1
+        while k2 < n_out and base[k2] == b:
+            k2 += 1
+        for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
+            _form(kk, z, Ge, rq, opat, ow, out)
+        last = k2 - 1
+        nxt = base[k2] if k2 < n_out else n_steps
+        if nxt - b == 5 and ow[last, 1] == 0.0 and n_rq <= N_FUSED:
+            p = opat[last, 0]
+            dots = _dots_step5(
+                z, mu, r0, r1, s, b, Ge[p, fq[0]], Ge[p, fq[1]], Ge[p, fq[2]], Ge[p, fq[3]], Ge[p, fq[4]]
+            )
+            w0 = ow[last, 0]
+            for i in range(min(n_rq, N_FUSED)):
+                out[fq[i], last] = w0 * dots[i]
+            cur = b + 5
+        else:
+            _form(last, z, Ge, rq, opat, ow, out)
+        k_out = k2
     _advance(z, mu, r0, r1, s, cur, n_steps)
+    _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
     # final temperatures T = V z = Cap^-1/2 W z
-    zl = z
-    apply_w(nrot, rot_i, rot_cs, zl)
+    apply_w(nrot, rot_i, rot_cs, z)
     for i in range(n_nodes):
         tend[i] = 0.0
     for i in range(m):
-        tend[j0 + i] = dinv[i] * zl[i]
+        tend[j0 + i] = dinv[i] * z[i]
     if j0 == 1:
         tend[0] = ue[n_steps]
     if bc_type[1] == 0:
         tend[n_nodes - 1] = ui[n_steps]
 
 
-@njit(cache=True, fastmath=True)
-def _advance(z, mu, r0, r1, s, n_from, n_to):
-    """Advance the modal state from grid time n_from to n_to (in place).
-
-    Four steps per pass over the modes (the state stays in registers in between), then
-    single steps; the loop over modes vectorises.
-    """
-    m = z.shape[0]
-    n = n_from
-    while n + 4 <= n_to:
-        a0 = s[n, 0]
-        a1 = s[n, 1]
-        b0 = s[n + 1, 0]
-        b1 = s[n + 1, 1]
-        c0 = s[n + 2, 0]
-        c1 = s[n + 2, 1]
-        d0 = s[n + 3, 0]
-        d1 = s[n + 3, 1]
-        for k in range(m):
-            u = mu[k]
-            p = r0[k]
-            q = r1[k]
-            zk = u * z[k] + (p * a0 + q * a1)
-            zk = u * zk + (p * b0 + q * b1)
-            zk = u * zk + (p * c0 + q * c1)
-            z[k] = u * zk + (p * d0 + q * d1)
-        n += 4
-    while n < n_to:
-        a0 = s[n, 0]
-        a1 = s[n, 1]
-        for k in range(m):
-            z[k] = mu[k] * z[k] + (r0[k] * a0 + r1[k] * a1)
-        n += 1
-
-
-@njit(cache=True, fastmath=True)
-def _form(k_out, nb, move, z, mu, r0, r1, s, wp, wf, feat, G, D, npr, want, zp, zf, out):
-    """Output k_out from the state z at its base step nb.
-
-    The states nb + 1 .. nb + 3 are stepped on from z mode by mode (nothing is stored), and
-    combined with the probe-row weights (zp) and the face-flux-row weights (zf); the output
-    rows are then dot products with G plus the input terms. With ``move`` (the next output's
-    base is at least nb + 3) z is left at step nb + 3.
-    """
-    m = z.shape[0]
-    n_steps = s.shape[0]
-    i0 = min(nb, n_steps - 1)  # beyond the end the weights are 0
-    i1 = min(nb + 1, n_steps - 1)
-    i2 = min(nb + 2, n_steps - 1)
-    e0, e1, e2 = s[i0, 0], s[i1, 0], s[i2, 0]
-    g0, g1, g2 = s[i0, 1], s[i1, 1], s[i2, 1]
-    p0, p1, p2, p3 = wp[k_out, 0], wp[k_out, 1], wp[k_out, 2], wp[k_out, 3]
-    f0, f1, f2, f3 = wf[k_out, 0], wf[k_out, 1], wf[k_out, 2], wf[k_out, 3]
-    for k in range(m):
-        u = mu[k]
-        a = r0[k]
-        b = r1[k]
-        z0 = z[k]
-        z1 = u * z0 + (a * e0 + b * g0)
-        z2 = u * z1 + (a * e1 + b * g1)
-        z3 = u * z2 + (a * e2 + b * g2)
-        zp[k] = p0 * z0 + p1 * z1 + p2 * z2 + p3 * z3
-        zf[k] = f0 * z0 + f1 * z1 + f2 * z2 + f3 * z3
-        z[k] = z3 if move else z0
-    for q in range(G.shape[0]):
-        if not want[q]:
-            out[q, k_out] = np.nan
-            continue
-        acc = 0.0
-        if q < npr:
-            for k in range(m):
-                acc += G[q, k] * zp[k]
-        else:
-            for k in range(m):
-                acc += G[q, k] * zf[k]
-        for c in range(N_FEAT):
-            acc += D[q, c] * feat[k_out, c]
-        out[q, k_out] = acc
-
-
 @njit(parallel=True, cache=True)
-def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, want, t0):
+def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
     """Run every candidate through its modal recursion (see module docstring).
 
     Parameters (c = candidate, j = node, l = link, p = probe, k = output time)
@@ -476,13 +700,14 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, w
     pa, pb, pw : (c, p) probe interpolation (see :func:`wallcal.grid.probe_weights`)
     bc_type : (2,) boundary codes; bc_h : (2,) surface coefficients
     theta, dt : scheme weight and time step [s]
-    s : (n_steps, 2) theta-weighted inputs per step; ue, ui : (n_steps + 1,) inputs
-    base, wp, wf, feat : output plan (:func:`output_plan`)
+    ue, ui : (n_steps + 1,) inputs
+    plan : :class:`ModalPlan` (a tuple of arrays, the same for every candidate)
     want : (p + 2,) bool, the output rows to form (the others are NaN)
     t0 : (c, j) initial node temperatures, or shape (c, 0) for the steady state of the first inputs
 
     Returns out (c, p + 2, k) and the final node temperatures (c, j) (known face nodes included).
     """
+    base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
     nc = cap.shape[0]
     out = np.empty((nc, pa.shape[1] + 2, base.shape[0]))
     tend = np.empty(cap.shape)
@@ -497,13 +722,21 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, w
             bc_h,
             theta,
             dt,
-            s,
             ue,
             ui,
             base,
+            opat,
+            ow,
             wp,
             wf,
             feat,
+            sw,
+            pmain,
+            mainw,
+            xk,
+            xp,
+            xw,
+            s,
             want,
             out[c],
             t0[c],
@@ -513,8 +746,9 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, w
 
 
 @njit(cache=True)
-def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, wp, wf, feat, want, t0):
+def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
     """:func:`modal_batch` on the calling thread (small batches: no thread wake-up latency)."""
+    base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
     nc = cap.shape[0]
     out = np.empty((nc, pa.shape[1] + 2, base.shape[0]))
     tend = np.empty(cap.shape)
@@ -529,13 +763,21 @@ def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, s, ue, ui, base, 
             bc_h,
             theta,
             dt,
-            s,
             ue,
             ui,
             base,
+            opat,
+            ow,
             wp,
             wf,
             feat,
+            sw,
+            pmain,
+            mainw,
+            xk,
+            xp,
+            xw,
+            s,
             want,
             out[c],
             t0[c],
