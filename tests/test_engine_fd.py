@@ -420,3 +420,44 @@ def test_lambda_T_refactorisation_is_invisible():
     every = FDEngine("cn").prepare(inp_every).run_walls([wall])
     diff = np.abs(every.out[0, :4] - ref.out[0, :4]).max()
     assert diff < 1e-4, diff
+
+
+@pytest.mark.parametrize(
+    "positions",
+    [
+        "every5",  # the fused five-step pass (5-minute outputs at 1-minute steps)
+        "every1",  # an output at every grid time
+        "irregular",  # uneven spacing, two outputs on one grid time, fractional times
+    ],
+)
+@pytest.mark.parametrize("rows", [None, (0, 2), (5,), (0, 1, 2, 3, 4, 5, 6, 7)])
+def test_modal_output_plan_equals_general_path(positions, rows):
+    """Every way the modal kernel forms outputs (fused pass, separate dot products, several
+    patterns, subsets of rows, more rows than the fused pass takes) against the general path."""
+    wall = three_layer_wall(probes=(0.0, 0.05, 0.1, 0.17, 0.22, 0.25))  # 6 probes: 8 rows
+    ue, ui = daily_inputs("surface_temperature", "surface_temperature", days=1)
+    n = len(ue) - 1
+    # piecewise-linear inputs (5-minute data at 1-minute steps), as the data preparation makes them
+    ue = np.interp(np.arange(n + 1), np.arange(0, n + 1, 5), ue[::5])
+    inp = make_input(wall, ue, ui, 60.0, faces=("exterior", "interior"))
+    if positions == "every5":
+        pos = np.arange(0, n + 1, 5, dtype=float)
+    elif positions == "every1":
+        pos = np.arange(0, n + 1, dtype=float)
+    else:
+        rng = np.random.default_rng(3)
+        pos = np.sort(np.concatenate([[0.0, 0.0, 1.5, n - 0.25, float(n)], rng.uniform(0, n, 60), [300.0, 300.0]]))
+    inp = inp.__class__(**{**inp.__dict__, "output_positions": pos})
+    prep = FDEngine("cn").prepare(inp)
+    props = PropertyArrays.from_walls([wall, wall.replace_layer("wool", conductivity=0.05)])
+    mask = None
+    if rows is not None:
+        mask = np.zeros(len(wall.probes) + 2, dtype=bool)
+        mask[list(rows)] = True
+    fast = prep.run_batch(props, path="modal", rows=mask)
+    slow = prep.run_batch(props, path="general")
+    assert fast.path == "modal"
+    want = np.ones(len(wall.probes) + 2, dtype=bool) if mask is None else mask
+    np.testing.assert_allclose(fast.out[:, want], slow.out[:, want], rtol=0, atol=1e-9)
+    assert np.isnan(fast.out[:, ~want]).all()
+    np.testing.assert_allclose(fast.final_state, slow.final_state, rtol=0, atol=1e-9)
