@@ -20,7 +20,15 @@ matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances
 difference is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised
 only when ``g*`` drifts from ``g0``. The exponential law's node factors ``exp(f (T - T_ref))`` are
 updated multiplicatively with a short polynomial of ``f dT`` (exact ``exp`` when a step changes
-a temperature a lot, and every 1024 steps). State buffers are rotated, not copied.
+a temperature a lot, and every 1024 steps).
+
+Speed: the step loop of :func:`_run_one` is one numba function without calls on the common path
+(a call, or numba's ``inline="always"``, passes array structs and adds refcount operations that
+spill the solve's chains), compiled with FMA contraction only. Every pass over the links or nodes
+writes a single array, which keeps LLVM's run-time aliasing checks under its limit so that the pass
+vectorises; the only serial work left is the twisted solve (two chains of m/2 multiply-adds each
+way). The time levels are shifted by one vectorised pass per step that also prepares the next
+lambda(T) step, instead of rotating array references (which costs refcounting in numba).
 
 Boundary codes: 0 surface temperature (Dirichlet), 1 air temperature with a
 surface coefficient (Robin), 2 heat flux density (positive towards the interior).
@@ -210,12 +218,6 @@ def _steady(
 
 
 @njit(cache=True)
-def _probes(Tfull, pa, pb, pw, P, row):
-    for k in range(pa.shape[0]):
-        P[row, k] = (1.0 - pw[k]) * Tfull[pa[k]] + pw[k] * Tfull[pb[k]]
-
-
-@njit(cache=True)
 def _face_flux(F, j, n_steps, u, is_flux_bc):
     """Instantaneous face flux at grid time j from the step-average fluxes F[j] = F^{j+1/2} (ring of 4).
 
@@ -233,7 +235,7 @@ def _face_flux(F, j, n_steps, u, is_flux_bc):
 
 
 @njit(cache=True)
-def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2):
+def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, f1, f2):
     """Twisted ("burn at both ends") LU of A0 = Cap/dt + K_theta(g0) over the unknowns.
 
     Rows above the twist k = m // 2 are eliminated downwards (pivots p), rows below it upwards
@@ -241,11 +243,10 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2
     one of length m. Stored per row i: inv = 1/pivot, and
     i < k: f1 = b_{i-1}/p_i (forward coupling), f2 = b_i/p_i (back substitution);
     i > k: f1 = b_i/q_i, f2 = b_{i-1}/q_i; i = k: 1/gamma and the two couplings b_{k-1}, b_k.
-    (a: diagonal, b_i: off-diagonal between i and i + 1.)
+    (a: diagonal, b_i: off-diagonal between i and i + 1; a and b are work arrays of length >= m,
+    passed in so that the refactorisations of a lambda(T) run do not allocate.)
     """
     k = m // 2
-    a = np.empty(m)
-    b = np.zeros(m)
     for i in range(m):
         j = j0 + i
         diag = cap[j] / dt
@@ -254,8 +255,7 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2
         if j < g0.shape[0]:
             diag += theta[j] * g0[j]
         a[i] = diag
-        if i < m - 1:
-            b[i] = -theta[j] * g0[j]
+        b[i] = -theta[j] * g0[j] if i < m - 1 else 0.0
     if bc_type[0] == 1:
         a[0] += bc_theta[0] * bc_h[0]
     if bc_type[1] == 1:
@@ -282,48 +282,6 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2
     inv[k] = 1.0 / gam
     f1[k] = b[k - 1] if k > 0 else 0.0
     f2[k] = b[k] if k < m - 1 else 0.0
-
-
-@njit(cache=True, fastmath=True)
-def _solve_lean(inv, f1, f2, rhs, x, m, off):
-    """Solve A0 x[off:off + m] = rhs with the twisted factors of :func:`_factor_lean`: the two
-    halves' chains are interleaved, one multiply-add per row and sweep."""
-    k = m // 2
-    for i in range(m):
-        if i != k:
-            rhs[i] *= inv[i]
-    # elimination towards the twist: y_i = rhs_i/p_i - f1_i y_{i-1} (top), y_i = rhs_i/q_i - f1_i y_{i+1}
-    # (bottom); the running values stay in registers (no store-to-load latency on the chain)
-    yt = rhs[0]
-    yb = rhs[m - 1]
-    x[off + 0] = yt
-    x[off + m - 1] = yb
-    for t in range(1, k):
-        yt = rhs[t] - f1[t] * yt
-        x[off + t] = yt
-        ib = m - 1 - t
-        if ib > k:
-            yb = rhs[ib] - f1[ib] * yb
-            x[off + ib] = yb
-    xk = rhs[k]
-    if k > 0:
-        xk -= f1[k] * x[off + k - 1]
-    if k < m - 1:
-        xk -= f2[k] * x[off + k + 1]
-    xk *= inv[k]
-    x[off + k] = xk
-    # substitution away from the twist
-    xt = xk
-    xb = xk
-    for t in range(1, max(k, m - 1 - k) + 1):
-        it = k - t
-        if it >= 0:
-            xt = x[off + it] - f2[it] * xt
-            x[off + it] = xt
-        ib = k + t
-        if ib < m:
-            xb = x[off + ib] - f2[ib] * xb
-            x[off + ib] = xb
 
 
 @njit(cache=True, fastmath=True)
@@ -363,55 +321,38 @@ def _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, ta
             gs[lnk] = g_ref[lnk] * (fa + 4.0 * fm + fb) / 6.0
 
 
-@njit(cache=True, fastmath=True)
-def _step_conductances(gs, g_ref, g0, tol, coef, Tmid, Tmid_old, Ea, Eb):
-    """One pass over the links: node factors updated by exp(f dT) (polynomial), Kirchhoff-mean
-    conductances g* (as :func:`_nonlinear_conductances`), and two counts: links whose |f dT|
-    exceeds the polynomial's range, and links whose g* drifted more than tol from g0.
-    Written without branches or max-reductions so that it vectorises."""
-    n_big = 0.0
-    n_drift = 0.0
-    for lnk in range(gs.shape[0]):
-        f = coef[lnk]
-        xa = f * (Tmid[lnk] - Tmid_old[lnk])
-        xb = f * (Tmid[lnk + 1] - Tmid_old[lnk + 1])
-        n_big += (1.0 if abs(xa) > 0.01 else 0.0) + (1.0 if abs(xb) > 0.01 else 0.0)
-        ea = Ea[lnk] * _exp_step(xa)
-        eb = Eb[lnk] * _exp_step(xb)
-        Ea[lnk] = ea
-        Eb[lnk] = eb
-        d = f * (Tmid[lnk] - Tmid[lnk + 1])
-        far = abs(d) > 1e-4
-        ratio = (ea - eb) / (d if far else 1.0)
-        series = 0.5 * (ea + eb) * (1.0 - d * d / 12.0)
-        gk = g_ref[lnk] * (ratio if far else series)
-        gs[lnk] = gk
-        n_drift += 1.0 if abs(gk - g0[lnk]) > tol[lnk] else 0.0
-    return n_big, n_drift
-
-
 @njit(cache=True)
-def _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol):
-    """How far a link conductance may drift from the factorised one before refactoring: the
-    fraction ``drift`` of it (default 2 %), and at most 0.05 / (theta dt (1/c_a + 1/c_b)) so that
-    the explicit correction stays far inside its stability limit."""
-    n_links = g0.shape[0]
+def _drift_limits(cap, theta, dt, bc_type, lim):
+    """The part of the drift tolerance that does not depend on ``g0`` (see :func:`_set_factorised`):
+    0.05 / (theta dt (1/c_a + 1/c_b)) (known face nodes count as infinite capacity; inf for a link
+    between two known nodes), and 0 for a link touching an unknown node without capacity."""
+    n_links = lim.shape[0]
     n_nodes = cap.shape[0]
     for lnk in range(n_links):
-        ia = 0.0 if (lnk == 0 and bc_type[0] == 0) or cap[lnk] <= 0.0 else 1.0 / cap[lnk]
-        ib = 0.0 if (lnk + 1 == n_nodes - 1 and bc_type[1] == 0) or cap[lnk + 1] <= 0.0 else 1.0 / cap[lnk + 1]
-        if (cap[lnk] <= 0.0 and not (lnk == 0 and bc_type[0] == 0)) or (
-            cap[lnk + 1] <= 0.0 and not (lnk + 1 == n_nodes - 1 and bc_type[1] == 0)
-        ):
-            tol[lnk] = 0.0
+        known_a = lnk == 0 and bc_type[0] == 0
+        known_b = lnk + 1 == n_nodes - 1 and bc_type[1] == 0
+        if (cap[lnk] <= 0.0 and not known_a) or (cap[lnk + 1] <= 0.0 and not known_b):
+            lim[lnk] = 0.0
             continue
+        ia = 0.0 if known_a else 1.0 / cap[lnk]
+        ib = 0.0 if known_b else 1.0 / cap[lnk + 1]
         stiff = theta[lnk] * dt * (ia + ib)
-        tol[lnk] = drift * g0[lnk]
-        if stiff > 0.0:
-            tol[lnk] = min(tol[lnk], 0.05 / stiff)
+        lim[lnk] = 0.05 / stiff if stiff > 0.0 else np.inf
 
 
 @njit(cache=True)
+def _set_factorised(g0, gs, theta, drift, lim, thg, tol):
+    """Take ``g*`` as the factorised conductances ``g0``: ``thg = theta g0`` and the drift tolerance
+    ``tol = min(drift g0, lim)``, how far a conductance may drift from ``g0`` before refactoring: the
+    fraction ``drift`` of it (default 2 %), and at most ``lim`` (:func:`_drift_limits`) so that the
+    explicit correction stays far inside its stability limit."""
+    for lnk in range(g0.shape[0]):
+        g0[lnk] = gs[lnk]
+        thg[lnk] = theta[lnk] * g0[lnk]
+        tol[lnk] = min(drift * g0[lnk], lim[lnk])
+
+
+@njit(cache=True, fastmath={"contract"})
 def _run_one(
     cap,
     g_ref,
@@ -452,32 +393,50 @@ def _run_one(
       ``E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l``: the same flux as the
       scheme with ``g*`` implicit up to ``theta (g0 - g*) (dT^{n+1} - dT~) = O(dt^2)``, so second
       order is kept, the steady state is exact, and the matrix is refactorised only when ``g*``
-      drifts from ``g0`` (see :func:`_drift_tolerance`).
+      drifts from ``g0`` (see :func:`_set_factorised`).
+
+    Layout of a step (see the module docstring for why): lambda(T) only, three vectorised passes
+    over the links (node factors, ``g*`` with the two counts that trigger the rare branch: exact
+    factors, table laws, refactorisation); the explicit fluxes ``E``; the right-hand side; the
+    solve, written out; the scalar face fluxes, probes and outputs; one pass over the nodes that
+    shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the next step (mid-step temperature,
+    its change, the predictor written into ``Tnew``).
     """
     n_nodes = cap.shape[0]
     n_links = g_ref.shape[0]
     n_steps = ue.shape[0] - 1
-    j0 = 1 if bc_type[0] == 0 else 0
-    j1 = n_nodes - 2 if bc_type[1] == 0 else n_nodes - 1
+    dir_e = bc_type[0] == DIRICHLET
+    dir_i = bc_type[1] == DIRICHLET
+    j0 = 1 if dir_e else 0
+    j1 = n_nodes - 2 if dir_i else n_nodes - 1
     m = j1 - j0 + 1
     mm = max(m, 1)
     g0 = g_ref.copy()  # conductances of the factorised matrix
     gs = g_ref.copy()  # conductances of the current step (lambda(T))
+    thg = np.empty(n_links)  # theta g0: implicit part of the factorised link conductances
+    omth = np.empty(n_links)  # 1 - theta
     tol = np.zeros(n_links)
+    lim = np.zeros(n_links)
     inv = np.zeros(mm)
     f1 = np.zeros(mm)
     f2 = np.zeros(mm)
+    wa = np.zeros(mm)
+    wb = np.zeros(mm)
     rhs = np.zeros(mm)
+    k = m // 2  # twist row of the factorisation
+    nb = m - 1 - k  # rows below it (k or k - 1)
     Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
     Tn = np.zeros(n_nodes)  # T^n
-    Told = np.zeros(n_nodes)  # T^{n-1}
-    Tnew = np.zeros(n_nodes)  # T^{n+1}
-    Tmid = np.zeros(n_nodes)
-    Tmid_old = np.zeros(n_nodes)
+    Tnew = np.zeros(n_nodes)  # T^{n+1}; before the solve: the known faces and the predictor T~
+    Tu = Tnew[j0 : j0 + m]  # its unknowns (view)
+    Tmid = np.zeros(n_nodes)  # mid-step temperature of the step (lambda(T))
+    dTm = np.zeros(n_nodes)  # its change since the previous step
     Ea = np.ones(n_links)
     Eb = np.ones(n_links)
     has_table = False
     for lnk in range(n_links):
+        omth[lnk] = 1.0 - theta[lnk]
+        thg[lnk] = theta[lnk] * g0[lnk]
         if kind[lnk] == 2:
             has_table = True
     cdt = np.empty(n_nodes)
@@ -487,9 +446,9 @@ def _run_one(
     if Tinit.shape[0] == n_nodes:
         for j in range(n_nodes):
             Tn[j] = Tinit[j]
-        if bc_type[0] == 0:
+        if dir_e:
             Tn[0] = ue[0]
-        if bc_type[1] == 0:
+        if dir_i:
             Tn[n_nodes - 1] = ui[0]
     else:
         _steady(
@@ -514,17 +473,20 @@ def _run_one(
         )
     e_start = 0.0
     for j in range(n_nodes):
-        Told[j] = Tn[j]
+        Tnew[j] = Tn[j]  # predictor of the first step: T^0
         Tmid[j] = Tn[j]
         e_start += cap[j] * Tn[j]
     if nonlinear:
         _exact_factors(coef, tref, Tmid, Ea, Eb)
         _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb)
-        for lnk in range(n_links):
-            g0[lnk] = gs[lnk]
-        _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol)
+        _drift_limits(cap, theta, dt, bc_type, lim)
+        _set_factorised(g0, gs, theta, drift, lim, thg, tol)
+    # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
+    gex = np.empty(n_links)
+    for lnk in range(n_links):
+        gex[lnk] = omth[lnk] * g0[lnk]
     if m > 0:
-        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2)
+        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
 
     e_in = 0.0
     e_out = 0.0
@@ -534,94 +496,165 @@ def _run_one(
     P = np.zeros((4, n_pr))
     Fe = np.zeros(4)
     Fi = np.zeros(4)
-    flux_e = bc_type[0] == 2
-    flux_i = bc_type[1] == 2
+    flux_e = bc_type[0] == FLUX
+    flux_i = bc_type[1] == FLUX
     the = bc_theta[0]
     thi = bc_theta[1]
-    _probes(Tn, pa, pb, pw, P, 0)
+    for q in range(n_pr):
+        P[0, q] = (1.0 - pw[q]) * Tn[pa[q]] + pw[q] * Tn[pb[q]]
     k_out = 0
     for n in range(n_steps):
-        if bc_type[0] == 0:
+        if dir_e:
             Tnew[0] = ue[n + 1]
-        if bc_type[1] == 0:
+        if dir_i:
             Tnew[n_nodes - 1] = ui[n + 1]
         # explicit part of the link fluxes
         if nonlinear:
-            if n > 0:
-                for j in range(n_nodes):
-                    Tmid_old[j] = Tmid[j]
-                    Tmid[j] = 1.5 * Tn[j] - 0.5 * Told[j]
-                n_big, n_drift = _step_conductances(gs, g_ref, g0, tol, coef, Tmid, Tmid_old, Ea, Eb)
-                if n % 1024 == 0 or n_big > 0.0 or has_table:
+            if n > 0:  # (first step: g* = g0 from the start)
+                # lambda(T): passes over the links, each writing one array so that LLVM vectorises
+                # it (a loop writing several arrays needs more run-time aliasing checks than LLVM
+                # allows and stays scalar); no branches, integer counts. Node factors updated by
+                # exp(f dTmid) (polynomial), counting updates beyond the polynomial's range ...
+                n_big = 0
+                for lnk in range(n_links):
+                    x = coef[lnk] * dTm[lnk]
+                    n_big += 1 if abs(x) > 0.01 else 0
+                    Ea[lnk] *= _exp_step(x)
+                for lnk in range(n_links):
+                    x = coef[lnk] * dTm[lnk + 1]
+                    n_big += 1 if abs(x) > 0.01 else 0
+                    Eb[lnk] *= _exp_step(x)
+                # ... then the Kirchhoff-mean conductances g* (as _nonlinear_conductances), counting
+                # the links whose g* drifted more than tol from g0
+                n_drift = 0
+                for lnk in range(n_links):
+                    ea = Ea[lnk]
+                    eb = Eb[lnk]
+                    d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+                    far = abs(d) > 1e-4
+                    ratio = (ea - eb) / (d if far else 1.0)
+                    series = 0.5 * (ea + eb) * (1.0 - d * d * (1.0 / 12.0))
+                    gk = g_ref[lnk] * (ratio if far else series)
+                    gs[lnk] = gk
+                    n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
+                if n % 1024 == 0 or n_big > 0 or has_table:  # exact node factors (and table laws)
                     _exact_factors(coef, tref, Tmid, Ea, Eb)
                     _nonlinear_conductances(
                         gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb
                     )
-                    n_drift = 0.0
+                    n_drift = 0
                     for lnk in range(n_links):
                         if abs(gs[lnk] - g0[lnk]) > tol[lnk]:
-                            n_drift += 1.0
-                if n_drift > 0.0 and m > 0:
-                    for lnk in range(n_links):
-                        g0[lnk] = gs[lnk]
-                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, inv, f1, f2)
-                    _drift_tolerance(cap, g0, theta, dt, bc_type, drift, tol)
-            # predictor T~ (kept in Tnew for the unknowns; the known face nodes hold T^{n+1})
-            for j in range(j0, j0 + m):
-                Tnew[j] = 2.0 * Tn[j] - Told[j] if n > 0 else Tn[j]
+                            n_drift += 1
+                if n_drift > 0 and m > 0:
+                    _set_factorised(g0, gs, theta, drift, lim, thg, tol)
+                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
+            # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
             for lnk in range(n_links):
-                th = theta[lnk]
                 dp = Tnew[lnk] - Tnew[lnk + 1]
-                Epad[lnk + 1] = gs[lnk] * (th * dp + (1.0 - th) * (Tn[lnk] - Tn[lnk + 1])) - th * g0[lnk] * dp
+                Epad[lnk + 1] = gs[lnk] * (theta[lnk] * dp + omth[lnk] * (Tn[lnk] - Tn[lnk + 1])) - thg[lnk] * dp
         else:
             for lnk in range(n_links):
-                Epad[lnk + 1] = (1.0 - theta[lnk]) * g0[lnk] * (Tn[lnk] - Tn[lnk + 1])
+                Epad[lnk + 1] = gex[lnk] * (Tn[lnk] - Tn[lnk + 1])
         if m > 0:
             for i in range(m):
                 j = j0 + i
                 rhs[i] = cdt[j] * Tn[j] + Epad[j] - Epad[j + 1]
-            if bc_type[0] == 0:
-                rhs[0] += theta[0] * g0[0] * ue[n + 1]
-            elif bc_type[0] == 1:
+            if dir_e:
+                rhs[0] += thg[0] * ue[n + 1]
+            elif bc_type[0] == ROBIN:
                 rhs[0] += bc_h[0] * (the * ue[n + 1] + (1.0 - the) * (ue[n] - Tn[0]))
             else:
                 rhs[0] += the * ue[n + 1] + (1.0 - the) * ue[n]
-            if bc_type[1] == 0:
-                rhs[m - 1] += theta[n_links - 1] * g0[n_links - 1] * ui[n + 1]
-            elif bc_type[1] == 1:
+            if dir_i:
+                rhs[m - 1] += thg[n_links - 1] * ui[n + 1]
+            elif bc_type[1] == ROBIN:
                 rhs[m - 1] += bc_h[1] * (thi * ui[n + 1] + (1.0 - thi) * (ui[n] - Tn[n_nodes - 1]))
             else:
                 rhs[m - 1] -= thi * ui[n + 1] + (1.0 - thi) * ui[n]
-            _solve_lean(inv, f1, f2, rhs, Tnew, m, j0)
+            # solve A0 x = rhs with the twisted factors of _factor_lean: two dependency chains of
+            # m/2 multiply-adds each way, interleaved, the running values in registers. Written out
+            # here (a call, or numba's inline="always", costs refcount operations and spills on the
+            # chain each step); needs FMA contraction (else a multiply plus an add per row).
+            for i in range(m):  # scaled right-hand side, off the chains (vectorises)
+                if i != k:
+                    rhs[i] *= inv[i]
+            # elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
+            # y_i = rhs_i/p_i - f1_i y_{i-1} (top), y_i = rhs_i/q_i - f1_i y_{i+1} (bottom)
+            yt = rhs[0]
+            yb = rhs[m - 1]
+            Tu[0] = yt
+            Tu[m - 1] = yb
+            for t in range(1, nb):
+                yt = rhs[t] - f1[t] * yt
+                Tu[t] = yt
+                ib = m - 1 - t
+                yb = rhs[ib] - f1[ib] * yb
+                Tu[ib] = yb
+            for t in range(max(nb, 1), k):  # the top half's extra row (m even)
+                yt = rhs[t] - f1[t] * yt
+                Tu[t] = yt
+            xk = rhs[k]
+            if k > 0:
+                xk -= f1[k] * Tu[k - 1]
+            if k < m - 1:
+                xk -= f2[k] * Tu[k + 1]
+            xk *= inv[k]
+            Tu[k] = xk
+            # substitution away from the twist
+            xt = xk
+            xb = xk
+            for t in range(1, nb + 1):
+                it = k - t
+                xt = Tu[it] - f2[it] * xt
+                Tu[it] = xt
+                ib = k + t
+                xb = Tu[ib] - f2[ib] * xb
+                Tu[ib] = xb
+            for t in range(nb + 1, k + 1):  # the top half's extra row (m even)
+                it = k - t
+                xt = Tu[it] - f2[it] * xt
+                Tu[it] = xt
         # step-average face fluxes F^{n+1/2} (the scheme's own link fluxes: energy is conserved exactly)
-        if bc_type[0] == 0:
-            fe = Epad[1] + theta[0] * g0[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0])
-        elif bc_type[0] == 1:
+        if dir_e:
+            fe = Epad[1] + thg[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0])
+        elif bc_type[0] == ROBIN:
             fe = bc_h[0] * (the * (ue[n + 1] - Tnew[0]) + (1.0 - the) * (ue[n] - Tn[0]))
         else:
             fe = the * ue[n + 1] + (1.0 - the) * ue[n]
-        if bc_type[1] == 0:
+        if dir_i:
             lk = n_links - 1
-            fi = Epad[lk + 1] + theta[lk] * g0[lk] * (Tnew[lk] - Tnew[lk + 1])
+            fi = Epad[lk + 1] + thg[lk] * (Tnew[lk] - Tnew[lk + 1])
             fi -= cdt[n_nodes - 1] * (Tnew[n_nodes - 1] - Tn[n_nodes - 1])
-        elif bc_type[1] == 1:
+        elif bc_type[1] == ROBIN:
             fi = bc_h[1] * (thi * (Tnew[n_nodes - 1] - ui[n + 1]) + (1.0 - thi) * (Tn[n_nodes - 1] - ui[n]))
         else:
             fi = thi * ui[n + 1] + (1.0 - thi) * ui[n]
         e_in += dt * fe
         e_out += dt * fi
-        Fe[n % 4] = fe
-        Fi[n % 4] = fi
-        # rotate the state buffers (no copies): T^{n-1} <- T^n <- T^{n+1}
-        tmp = Told
-        Told = Tn
-        Tn = Tnew
-        Tnew = tmp
-        _probes(Tn, pa, pb, pw, P, (n + 1) % 4)
+        Fe[n & 3] = fe
+        Fi[n & 3] = fi
+        row = (n + 1) & 3
+        for q in range(n_pr):
+            P[row, q] = (1.0 - pw[q]) * Tnew[pa[q]] + pw[q] * Tnew[pb[q]]
         # outputs between grid nk and nk + 1 are complete once F^{nk+3/2} is known (nk = n - 1)
         while k_out < n_out and out_step[k_out] <= n - 1:
             _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out)
             k_out += 1
+        # next time level: T^n <- T^{n+1}; for lambda(T) also the next step's mid-step temperature
+        # 1.5 T^{n+1} - 0.5 T^n, its change, and the predictor 2 T^{n+1} - T^n (into Tnew)
+        if nonlinear:
+            for j in range(n_nodes):
+                t0 = Tn[j]
+                t1 = Tnew[j]
+                Tn[j] = t1
+                tm = 1.5 * t1 - 0.5 * t0
+                dTm[j] = tm - Tmid[j]
+                Tmid[j] = tm
+                Tnew[j] = 2.0 * t1 - t0
+        else:
+            for j in range(n_nodes):
+                Tn[j] = Tnew[j]
     while k_out < n_out:  # outputs in the last step
         _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out)
         k_out += 1
