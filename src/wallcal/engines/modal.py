@@ -234,6 +234,7 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
     feat[:, 0] = (1.0 - w) * ue[nk] + w * ue[nk + 1]
     feat[:, 1] = (1.0 - w) * ui[nk] + w * ui[nk + 1]
     pats = np.zeros((2, n_out, 8))  # per grid time nk + jj: probe weights (4), flux weights (4)
+    keys = np.zeros((2, n_out), dtype=np.int64)  # what the weights depend on: offset and kind
     for jj in (0, 1):
         j = nk + jj
         wt = (1.0 - w) if jj == 0 else w
@@ -243,17 +244,17 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
         c = np.where(j == 0, theta, np.where(j >= n_steps, 0.0, 0.5 * theta))
         jm = np.maximum(j - 1, 0)
         jp = np.minimum(j + 1, n_steps)
-        for coef, jx in ((a, jm), (b, j), (c, jp)):
-            np.add.at(pats[jj], (rows, 4 + jx - base), coef)
+        for coef, jx in ((a, jm), (b, j), (c, jp)):  # one entry per row: no repeated index
+            pats[jj, rows, 4 + jx - base] += coef
+        keys[jj] = (j - base) * 3 + np.where(j == 0, 1, np.where(j >= n_steps, 2, 0))
         feat[:, 2] += wt * (a * ue[jm] + b * ue[j] + c * ue[jp])
         feat[:, 3] += wt * (a * ui[jm] + b * ui[j] + c * ui[jp])
         inv = 1.0 / ((jp - jm) * dt)
         feat[:, 4] += wt * (ue[jp] - ue[jm]) * inv
         feat[:, 5] += wt * (ui[jp] - ui[jm]) * inv
-    if n_out:
-        uniq, inv_idx = np.unique(pats.reshape(2 * n_out, 8), axis=0, return_inverse=True)
-    else:
-        uniq, inv_idx = np.zeros((0, 8)), np.zeros(0, dtype=np.int64)
+    # the distinct patterns (the weights are a function of the key)
+    ukeys, first, inv_idx = np.unique(keys.reshape(-1), return_index=True, return_inverse=True)
+    uniq = pats.reshape(2 * n_out, 8)[first]
     opat = np.ascontiguousarray(inv_idx.reshape(2, n_out).T, dtype=np.int64)
     ow = np.ascontiguousarray(np.column_stack([1.0 - w, w]))
     wp = np.ascontiguousarray(uniq[:, :4])
