@@ -47,7 +47,7 @@ Per candidate (everything inside the numba batch loop, in parallel over candidat
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
    over the steps: between two anchors five steps apart (5-minute data at
    1-minute steps), one loop over the modes forms the anchor's output rows and
-   steps five times (:func:`_dots_step5`); otherwise the rows are formed
+   steps five times (:func:`_dots_step5`, :func:`_dots3_step5`); otherwise the rows are formed
    (:func:`_form`) and the state is stepped four steps per pass (:func:`_advance`).
    Memory does not depend on the number of steps.
 """
@@ -472,6 +472,31 @@ def _dots_step5(z, mu, r0, r1, s, n, g0, g1, g2, g3, g4):
 
 
 @njit(cache=True, fastmath=True, inline="always")
+def _dots3_step5(z, mu, r0, r1, s, n, g0, g1, g2):
+    """:func:`_dots_step5` for at most three requested rows (a calibration's usual targets)."""
+    m = z.shape[0]
+    a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
+    b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
+    d0 = 0.0
+    d1 = 0.0
+    d2 = 0.0
+    for k in range(m):
+        zk = z[k]
+        d0 += g0[k] * zk
+        d1 += g1[k] * zk
+        d2 += g2[k] * zk
+        u = mu[k]
+        e = r0[k]
+        f = r1[k]
+        zk = u * zk + (e * a0 + f * b0)
+        zk = u * zk + (e * a1 + f * b1)
+        zk = u * zk + (e * a2 + f * b2)
+        zk = u * zk + (e * a3 + f * b3)
+        z[k] = u * zk + (e * a4 + f * b4)
+    return d0, d1, d2
+
+
+@njit(cache=True, fastmath=True, inline="always")
 def _form(k_out, z, Ge, rq, opat, ow, out):
     """The state part of output k_out from the state at its anchor: a dot product per requested
     row and pattern (the input terms are added by :func:`_input_terms`)."""
@@ -667,12 +692,17 @@ def _modal_one(
         nxt = base[k2] if k2 < n_out else n_steps
         if nxt - b == 5 and ow[last, 1] == 0.0 and n_rq <= N_FUSED:
             p = opat[last, 0]
-            dots = _dots_step5(
-                z, mu, r0, r1, s, b, Ge[p, fq[0]], Ge[p, fq[1]], Ge[p, fq[2]], Ge[p, fq[3]], Ge[p, fq[4]]
-            )
             w0 = ow[last, 0]
-            for i in range(min(n_rq, N_FUSED)):
-                out[fq[i], last] = w0 * dots[i]
+            if n_rq <= 3:
+                d3 = _dots3_step5(z, mu, r0, r1, s, b, Ge[p, fq[0]], Ge[p, fq[1]], Ge[p, fq[2]])
+                for i in range(n_rq):
+                    out[fq[i], last] = w0 * d3[i]
+            else:
+                d5 = _dots_step5(
+                    z, mu, r0, r1, s, b, Ge[p, fq[0]], Ge[p, fq[1]], Ge[p, fq[2]], Ge[p, fq[3]], Ge[p, fq[4]]
+                )
+                for i in range(n_rq):
+                    out[fq[i], last] = w0 * d5[i]
             cur = b + 5
         else:
             _form(last, z, Ge, rq, opat, ow, out)
