@@ -14,8 +14,10 @@ with ``V^T Cap V = I``. Each mode then follows the real first-order recursion
     r_k = (V^T p)_k / (1/dt + theta lambda_k),  s^n = theta u^{n+1} + (1 - theta) u^n,
 
 which is the same linear algebra as the tridiagonal solve (results agree to
-round-off), at three multiply-adds per mode and step; the modes are
-independent, so the loop over them vectorises, and the state stays in
+round-off). The kernel runs it on the state scaled by the interior coupling,
+``y_k = z_k / r_{k,i}``, so that the interior input enters unscaled:
+``y <- mu y + (alpha s_e + s_i)``, two multiply-adds per mode and step. The modes
+are independent, so the loop over them vectorises, and the state stays in
 registers for several steps per pass, so the recursion runs at the machine's
 multiply-add throughput.
 
@@ -406,46 +408,38 @@ def _pattern_coefficients(mu, r0, r1, G, npr, rq, wp, wf, Ge, H):
 
 
 @njit(cache=True, fastmath=True, inline="always")
-def _advance(z, mu, r0, r1, s, n_from, n_to):
-    """Advance the modal state from grid time n_from to n_to (in place).
-
-    Four steps per pass over the modes (the state stays in registers in between), then
-    single steps; the loop over modes vectorises.
-    """
-    m = z.shape[0]
+def _advance(y, mu, al, s, n_from, n_to):
+    """Advance the scaled modal state ``y = z / r1`` from grid time n_from to n_to (in place):
+    ``y <- mu y + (alpha s0 + s1)``, two multiply-adds per mode and step, four steps per pass over
+    the modes (the state stays in a register in between), then single steps."""
+    m = y.shape[0]
     n = n_from
     while n + 4 <= n_to:
-        a0 = s[n, 0]
-        a1 = s[n, 1]
-        b0 = s[n + 1, 0]
-        b1 = s[n + 1, 1]
-        c0 = s[n + 2, 0]
-        c1 = s[n + 2, 1]
-        d0 = s[n + 3, 0]
-        d1 = s[n + 3, 1]
+        a0, a1, a2, a3 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0]
+        b0, b1, b2, b3 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1]
         for k in range(m):
             u = mu[k]
-            p = r0[k]
-            q = r1[k]
-            zk = u * z[k] + (p * a0 + q * a1)
-            zk = u * zk + (p * b0 + q * b1)
-            zk = u * zk + (p * c0 + q * c1)
-            z[k] = u * zk + (p * d0 + q * d1)
+            f = al[k]
+            yk = u * y[k] + (f * a0 + b0)
+            yk = u * yk + (f * a1 + b1)
+            yk = u * yk + (f * a2 + b2)
+            y[k] = u * yk + (f * a3 + b3)
         n += 4
     while n < n_to:
         a0 = s[n, 0]
-        a1 = s[n, 1]
+        b0 = s[n, 1]
         for k in range(m):
-            z[k] = mu[k] * z[k] + (r0[k] * a0 + r1[k] * a1)
+            y[k] = mu[k] * y[k] + (al[k] * a0 + b0)
         n += 1
 
 
 @njit(cache=True, fastmath=True, inline="always")
-def _dots_step5(z, mu, r0, r1, s, n, g0, g1, g2, g3, g4):
-    """The dot products of the state at grid time n with five output rows ``g0 .. g4`` (1-D, padded
-    with a zero row), and five steps on (to n + 5), in one pass over the modes. (The rows are passed
-    as 1-D arrays: indexing a 3-D array by runtime rows inside the loop keeps it from vectorising.)"""
-    m = z.shape[0]
+def _dots_step5(y, mu, al, s, n, gf):
+    """The dot products of the scaled state at grid time n with the five rows of ``gf`` (padded with
+    zero rows), and five steps on (to n + 5), in one pass over the modes. (The rows are one 2-D
+    array indexed by constants: separate arrays, or a 3-D array indexed by runtime rows, need more
+    runtime aliasing checks than LLVM accepts, and the loop then runs scalar.)"""
+    m = y.shape[0]
     a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
     b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
     d0 = 0.0
@@ -454,45 +448,43 @@ def _dots_step5(z, mu, r0, r1, s, n, g0, g1, g2, g3, g4):
     d3 = 0.0
     d4 = 0.0
     for k in range(m):
-        zk = z[k]
-        d0 += g0[k] * zk
-        d1 += g1[k] * zk
-        d2 += g2[k] * zk
-        d3 += g3[k] * zk
-        d4 += g4[k] * zk
+        zk = y[k]
+        d0 += gf[0, k] * zk
+        d1 += gf[1, k] * zk
+        d2 += gf[2, k] * zk
+        d3 += gf[3, k] * zk
+        d4 += gf[4, k] * zk
         u = mu[k]
-        e = r0[k]
-        f = r1[k]
-        zk = u * zk + (e * a0 + f * b0)
-        zk = u * zk + (e * a1 + f * b1)
-        zk = u * zk + (e * a2 + f * b2)
-        zk = u * zk + (e * a3 + f * b3)
-        z[k] = u * zk + (e * a4 + f * b4)
+        f = al[k]
+        zk = u * zk + (f * a0 + b0)
+        zk = u * zk + (f * a1 + b1)
+        zk = u * zk + (f * a2 + b2)
+        zk = u * zk + (f * a3 + b3)
+        y[k] = u * zk + (f * a4 + b4)
     return d0, d1, d2, d3, d4
 
 
 @njit(cache=True, fastmath=True, inline="always")
-def _dots3_step5(z, mu, r0, r1, s, n, g0, g1, g2):
+def _dots3_step5(y, mu, al, s, n, gf):
     """:func:`_dots_step5` for at most three requested rows (a calibration's usual targets)."""
-    m = z.shape[0]
+    m = y.shape[0]
     a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
     b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
     d0 = 0.0
     d1 = 0.0
     d2 = 0.0
     for k in range(m):
-        zk = z[k]
-        d0 += g0[k] * zk
-        d1 += g1[k] * zk
-        d2 += g2[k] * zk
+        zk = y[k]
+        d0 += gf[0, k] * zk
+        d1 += gf[1, k] * zk
+        d2 += gf[2, k] * zk
         u = mu[k]
-        e = r0[k]
-        f = r1[k]
-        zk = u * zk + (e * a0 + f * b0)
-        zk = u * zk + (e * a1 + f * b1)
-        zk = u * zk + (e * a2 + f * b2)
-        zk = u * zk + (e * a3 + f * b3)
-        z[k] = u * zk + (e * a4 + f * b4)
+        f = al[k]
+        zk = u * zk + (f * a0 + b0)
+        zk = u * zk + (f * a1 + b1)
+        zk = u * zk + (f * a2 + b2)
+        zk = u * zk + (f * a3 + b3)
+        y[k] = u * zk + (f * a4 + b4)
     return d0, d1, d2
 
 
@@ -675,40 +667,67 @@ def _modal_one(
     Ge = np.zeros((n_pat, n_q + 1, m))
     H = np.zeros((n_pat, n_q + 1, 6))
     _pattern_coefficients(mu, r0, r1, G, npr, rq, wp, wf, Ge, H)
+    # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
+    # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
+    # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
+    rmax = 0.0
+    for k in range(m):
+        rmax = max(rmax, abs(r0[k]), abs(r1[k]))
+    tiny = 1e-150 * rmax if rmax > 0.0 else 1e-150
+    rho = np.empty(m)
+    al = np.empty(m)
+    y = np.empty(m)
+    for k in range(m):
+        rk = r1[k]
+        if abs(rk) < tiny:
+            rk = tiny
+        rho[k] = rk
+        al[k] = r0[k] / rk
+        y[k] = z[k] / rk
+    Gs = np.empty_like(Ge)
+    for p in range(Ge.shape[0]):
+        for q in range(Ge.shape[1]):
+            for k in range(m):
+                Gs[p, q, k] = Ge[p, q, k] * rho[k]
+    # the fused rows of the main pattern, extracted once (a view per output would cost reference
+    # counting in the loop; other patterns go through _form)
+    pm0 = pmain[0]
+    gf = np.empty((N_FUSED, m))  # one array: LLVM checks its rows against the state as one object
+    for i in range(N_FUSED):
+        gf[i] = Gs[pm0, fq[i]]
     # one pass over the steps, stopping at each anchor
     n_out = base.shape[0]
     cur = 0
     k_out = 0
     while k_out < n_out:
         b = base[k_out]
-        _advance(z, mu, r0, r1, s, cur, b)
+        _advance(y, mu, al, s, cur, b)
         cur = b
         k2 = k_out + 1
         while k2 < n_out and base[k2] == b:
             k2 += 1
         for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
-            _form(kk, z, Ge, rq, opat, ow, out)
+            _form(kk, y, Gs, rq, opat, ow, out)
         last = k2 - 1
         nxt = base[k2] if k2 < n_out else n_steps
-        if nxt - b == 5 and ow[last, 1] == 0.0 and n_rq <= N_FUSED:
-            p = opat[last, 0]
+        if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
             w0 = ow[last, 0]
             if n_rq <= 3:
-                d3 = _dots3_step5(z, mu, r0, r1, s, b, Ge[p, fq[0]], Ge[p, fq[1]], Ge[p, fq[2]])
+                d3 = _dots3_step5(y, mu, al, s, b, gf)
                 for i in range(n_rq):
                     out[fq[i], last] = w0 * d3[i]
             else:
-                d5 = _dots_step5(
-                    z, mu, r0, r1, s, b, Ge[p, fq[0]], Ge[p, fq[1]], Ge[p, fq[2]], Ge[p, fq[3]], Ge[p, fq[4]]
-                )
+                d5 = _dots_step5(y, mu, al, s, b, gf)
                 for i in range(n_rq):
                     out[fq[i], last] = w0 * d5[i]
             cur = b + 5
         else:
-            _form(last, z, Ge, rq, opat, ow, out)
+            _form(last, y, Gs, rq, opat, ow, out)
         k_out = k2
-    _advance(z, mu, r0, r1, s, cur, n_steps)
+    _advance(y, mu, al, s, cur, n_steps)
     _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
+    for k in range(m):
+        z[k] = rho[k] * y[k]
     # final temperatures T = V z = Cap^-1/2 W z
     apply_w(nrot, rot_i, rot_cs, z)
     for i in range(n_nodes):
