@@ -18,17 +18,24 @@ Thomas solve with a matrix factorised at conductances ``g0``. For constant condu
 matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances of the step
 ``g*`` (Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the
 difference is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised
-only when ``g*`` drifts from ``g0``. The exponential law's node factors ``exp(f (T - T_ref))`` are
-updated multiplicatively with a short polynomial of ``f dT`` (exact ``exp`` when a step changes
-a temperature a lot, and every 1024 steps).
+only when ``g*`` drifts from ``g0``. The exponential law's Kirchhoff mean is evaluated as
+``g_ref Em sinh(x)/x`` with ``x = f (T_a - T_b) / 2`` and one factor per link at its mean
+temperature, ``Em = exp(f ((T_a + T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))``
+but without the division or the cancellation of ``E_a - E_b``. ``Em`` is updated multiplicatively
+with a short polynomial of ``f dT_m`` (exact ``exp`` when a step changes a temperature a lot, and
+every 1024 steps); ``sinh(x)/x`` is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``).
 
 Speed: the step loop of :func:`_run_one` is one numba function without calls on the common path
 (a call, or numba's ``inline="always"``, passes array structs and adds refcount operations that
 spill the solve's chains), compiled with FMA contraction only. Every pass over the links or nodes
-writes a single array, which keeps LLVM's run-time aliasing checks under its limit so that the pass
-vectorises; the only serial work left is the twisted solve (two chains of m/2 multiply-adds each
-way). The time levels are shifted by one vectorised pass per step that also prepares the next
-lambda(T) step, instead of rotating array references (which costs refcounting in numba).
+writes few arrays and reads few, which keeps LLVM's run-time aliasing checks under its limit so
+that the pass vectorises. The only serial work left is the twisted solve: two independent chains
+(top and bottom half) of m/2 rows each way, each chain taking two rows per multiply-add by
+recursive doubling (pair products precomputed at factorisation; the right-hand side is scaled by
+the pivots' inverses in the pass that forms it), with unsigned indices so that numba emits no
+negative-index wraparound. The time levels are shifted by one vectorised pass per step that also
+prepares the next lambda(T) step, instead of rotating array references (which costs refcounting in
+numba). Probe values are formed only at the steps whose outputs need them.
 
 Boundary codes: 0 surface temperature (Dirichlet), 1 air temperature with a
 surface coefficient (Robin), 2 heat flux density (positive towards the interior).
@@ -39,7 +46,7 @@ Conductivity codes per link: 0 constant, 1 exponential ``exp(f (T - T_ref))``,
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, uint64
 
 DIRICHLET = 0
 ROBIN = 1
@@ -284,6 +291,27 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, 
     f2[k] = b[k] if k < m - 1 else 0.0
 
 
+@njit(cache=True)
+def _solve_coefficients(inv, f1, f2, k, m, sc, c1, c2):
+    """Per-row coefficients of the step loop's twisted solve, from the factors of :func:`_factor_lean`:
+    sc, the scale of right-hand side row i (1/pivot, 1 at the twist row k), and the pair products
+    c1 (elimination) and c2 (substitution) that let each chain take two rows per multiply-add:
+    c1_t = f1_t f1_{t-1} (top, 2 <= t < k), c1_i = f1_i f1_{i+1} (bottom, k < i <= m - 3),
+    c2_i = f2_i f2_{i+1} (top, i <= k - 2), c2_i = f2_i f2_{i-1} (bottom, i >= k + 2)."""
+    for i in range(m):
+        sc[i] = inv[i] if i != k else 1.0
+        c1[i] = 0.0
+        c2[i] = 0.0
+    for i in range(2, k):
+        c1[i] = f1[i] * f1[i - 1]
+    for i in range(k + 1, m - 2):
+        c1[i] = f1[i] * f1[i + 1]
+    for i in range(0, k - 1):
+        c2[i] = f2[i] * f2[i + 1]
+    for i in range(k + 2, m):
+        c2[i] = f2[i] * f2[i - 1]
+
+
 @njit(cache=True, fastmath=True)
 def _exp_step(x):
     """exp(x) for |x| <= 0.01 (degree-5 Taylor polynomial, relative error < 2e-15)."""
@@ -291,24 +319,40 @@ def _exp_step(x):
 
 
 @njit(cache=True)
-def _exact_factors(coef, tref, Tmid, Ea, Eb):
-    for lnk in range(Ea.shape[0]):
-        Ea[lnk] = np.exp(coef[lnk] * (Tmid[lnk] - tref[lnk]))
-        Eb[lnk] = np.exp(coef[lnk] * (Tmid[lnk + 1] - tref[lnk]))
+def _exact_factors(coef, tref, Tmid, Em):
+    """Link factors exp(f (T_m - T_ref)) at the link's mean temperature T_m = (T_a + T_b) / 2."""
+    for lnk in range(Em.shape[0]):
+        Em[lnk] = np.exp(coef[lnk] * (0.5 * (Tmid[lnk] + Tmid[lnk + 1]) - tref[lnk]))
 
 
 @njit(cache=True, fastmath=True)
-def _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb):
-    """Kirchhoff-mean conductances from the end-node factors E = exp(f (T - T_ref)):
-    g = g_ref (E_a - E_b) / (f (T_a - T_b)) (series form when the two are close); a constant link
-    has f = 0, so E = 1 and g = g_ref exactly. Table links are evaluated by Simpson's rule."""
+def _sinhc(u):
+    """sinh(x) / x for u = x^2 <= SINHC_U_MAX (degree-10 Taylor polynomial, relative error < 4e-18)."""
+    return 1.0 + u * (
+        1.0 / 6.0 + u * (1.0 / 120.0 + u * (1.0 / 5040.0 + u * (1.0 / 362880.0 + u * (1.0 / 39916800.0))))
+    )
+
+
+SINHC_U_MAX = 0.0625  # |x| <= 0.25, i.e. |f (T_a - T_b)| <= 0.5
+
+
+@njit(cache=True)
+def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Em):
+    """Kirchhoff-mean conductances g = g_ref (E_a - E_b) / (f (T_a - T_b)) of the exponential law
+    E = exp(f (T - T_ref)), written with the link's mean-temperature factor Em (:func:`_exact_factors`)
+    as g = g_ref Em sinh(x) / x, x = f (T_a - T_b) / 2 (no cancellation, no division; the closed form
+    beyond the polynomial's range). A constant link has f = 0, so g = g_ref exactly. Table links are
+    evaluated by Simpson's rule."""
     n_links = gs.shape[0]
-    for lnk in range(n_links):  # branch-free (vectorises)
+    for lnk in range(n_links):
         d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
-        far = abs(d) > 1e-4
-        ratio = (Ea[lnk] - Eb[lnk]) / (d if far else 1.0)
-        series = 0.5 * (Ea[lnk] + Eb[lnk]) * (1.0 - d * d / 12.0)
-        gs[lnk] = g_ref[lnk] * (ratio if far else series)
+        u = 0.25 * d * d
+        if u <= SINHC_U_MAX:
+            gs[lnk] = g_ref[lnk] * (Em[lnk] * _sinhc(u))
+        else:
+            ea = np.exp(coef[lnk] * (Tmid[lnk] - tref[lnk]))
+            eb = np.exp(coef[lnk] * (Tmid[lnk + 1] - tref[lnk]))
+            gs[lnk] = g_ref[lnk] * ((ea - eb) / d)
     if not has_table:
         return
     for lnk in range(n_links):
@@ -395,12 +439,13 @@ def _run_one(
       order is kept, the steady state is exact, and the matrix is refactorised only when ``g*``
       drifts from ``g0`` (see :func:`_set_factorised`).
 
-    Layout of a step (see the module docstring for why): lambda(T) only, three vectorised passes
-    over the links (node factors, ``g*`` with the two counts that trigger the rare branch: exact
-    factors, table laws, refactorisation); the explicit fluxes ``E``; the right-hand side; the
-    solve, written out; the scalar face fluxes, probes and outputs; one pass over the nodes that
-    shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the next step (mid-step temperature,
-    its change, the predictor written into ``Tnew``).
+    Layout of a step (see the module docstring for why): lambda(T) only, two vectorised passes
+    over the links (link factors ``Em``; ``g*`` with the two counts that trigger the rare branch:
+    exact factors / closed form / table laws, refactorisation); the explicit fluxes ``E``; the
+    right-hand side, scaled for the solve; the solve, written out (two chains, two rows per
+    multiply-add); the scalar face fluxes, probes (only when an output needs them) and outputs; one
+    pass over the nodes that shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the next step
+    (mid-step temperature, its change, the predictor written into ``Tnew``).
     """
     n_nodes = cap.shape[0]
     n_links = g_ref.shape[0]
@@ -423,6 +468,9 @@ def _run_one(
     wa = np.zeros(mm)
     wb = np.zeros(mm)
     rhs = np.zeros(mm)
+    sc = np.ones(mm)  # scale of the right-hand side rows: 1/pivot, 1 at the twist row
+    c1 = np.zeros(mm)  # pair products of the solve (_solve_coefficients)
+    c2 = np.zeros(mm)
     k = m // 2  # twist row of the factorisation
     nb = m - 1 - k  # rows below it (k or k - 1)
     Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
@@ -431,8 +479,7 @@ def _run_one(
     Tu = Tnew[j0 : j0 + m]  # its unknowns (view)
     Tmid = np.zeros(n_nodes)  # mid-step temperature of the step (lambda(T))
     dTm = np.zeros(n_nodes)  # its change since the previous step
-    Ea = np.ones(n_links)
-    Eb = np.ones(n_links)
+    Em = np.ones(n_links)  # link factors exp(f (T_m - T_ref)) at the mean mid-step temperature
     has_table = False
     for lnk in range(n_links):
         omth[lnk] = 1.0 - theta[lnk]
@@ -477,8 +524,8 @@ def _run_one(
         Tmid[j] = Tn[j]
         e_start += cap[j] * Tn[j]
     if nonlinear:
-        _exact_factors(coef, tref, Tmid, Ea, Eb)
-        _nonlinear_conductances(gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb)
+        _exact_factors(coef, tref, Tmid, Em)
+        _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Em)
         _drift_limits(cap, theta, dt, bc_type, lim)
         _set_factorised(g0, gs, theta, drift, lim, thg, tol)
     # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
@@ -487,6 +534,7 @@ def _run_one(
         gex[lnk] = omth[lnk] * g0[lnk]
     if m > 0:
         _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
+        _solve_coefficients(inv, f1, f2, k, m, sc, c1, c2)
 
     e_in = 0.0
     e_out = 0.0
@@ -517,30 +565,24 @@ def _run_one(
                 # exp(f dTmid) (polynomial), counting updates beyond the polynomial's range ...
                 n_big = 0
                 for lnk in range(n_links):
-                    x = coef[lnk] * dTm[lnk]
+                    x = coef[lnk] * (0.5 * (dTm[lnk] + dTm[lnk + 1]))
                     n_big += 1 if abs(x) > 0.01 else 0
-                    Ea[lnk] *= _exp_step(x)
-                for lnk in range(n_links):
-                    x = coef[lnk] * dTm[lnk + 1]
-                    n_big += 1 if abs(x) > 0.01 else 0
-                    Eb[lnk] *= _exp_step(x)
-                # ... then the Kirchhoff-mean conductances g* (as _nonlinear_conductances), counting
-                # the links whose g* drifted more than tol from g0
+                    Em[lnk] *= _exp_step(x)
+                # ... then the Kirchhoff-mean conductances g* = g_ref Em sinh(x)/x (as
+                # _nonlinear_conductances), counting the links beyond the polynomial's range and those
+                # whose g* drifted more than tol from g0
                 n_drift = 0
                 for lnk in range(n_links):
-                    ea = Ea[lnk]
-                    eb = Eb[lnk]
                     d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
-                    far = abs(d) > 1e-4
-                    ratio = (ea - eb) / (d if far else 1.0)
-                    series = 0.5 * (ea + eb) * (1.0 - d * d * (1.0 / 12.0))
-                    gk = g_ref[lnk] * (ratio if far else series)
+                    u = 0.25 * d * d
+                    n_big += 1 if u > SINHC_U_MAX else 0
+                    gk = g_ref[lnk] * (Em[lnk] * _sinhc(u))
                     gs[lnk] = gk
                     n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
-                if n % 1024 == 0 or n_big > 0 or has_table:  # exact node factors (and table laws)
-                    _exact_factors(coef, tref, Tmid, Ea, Eb)
+                if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
+                    _exact_factors(coef, tref, Tmid, Em)
                     _nonlinear_conductances(
-                        gs, g_ref, kind, coef, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Ea, Eb
+                        gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Em
                     )
                     n_drift = 0
                     for lnk in range(n_links):
@@ -549,6 +591,7 @@ def _run_one(
                 if n_drift > 0 and m > 0:
                     _set_factorised(g0, gs, theta, drift, lim, thg, tol)
                     _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
+                    _solve_coefficients(inv, f1, f2, k, m, sc, c1, c2)
             # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
             for lnk in range(n_links):
                 dp = Tnew[lnk] - Tnew[lnk + 1]
@@ -557,43 +600,59 @@ def _run_one(
             for lnk in range(n_links):
                 Epad[lnk + 1] = gex[lnk] * (Tn[lnk] - Tn[lnk + 1])
         if m > 0:
+            # right-hand side, scaled by the pivots' inverses (row k by 1: sc) for the solve
             for i in range(m):
                 j = j0 + i
-                rhs[i] = cdt[j] * Tn[j] + Epad[j] - Epad[j + 1]
+                rhs[i] = (cdt[j] * Tn[j] + Epad[j] - Epad[j + 1]) * sc[i]
             if dir_e:
-                rhs[0] += thg[0] * ue[n + 1]
+                rhs[0] += thg[0] * ue[n + 1] * sc[0]
             elif bc_type[0] == ROBIN:
-                rhs[0] += bc_h[0] * (the * ue[n + 1] + (1.0 - the) * (ue[n] - Tn[0]))
+                rhs[0] += bc_h[0] * (the * ue[n + 1] + (1.0 - the) * (ue[n] - Tn[0])) * sc[0]
             else:
-                rhs[0] += the * ue[n + 1] + (1.0 - the) * ue[n]
+                rhs[0] += (the * ue[n + 1] + (1.0 - the) * ue[n]) * sc[0]
             if dir_i:
-                rhs[m - 1] += thg[n_links - 1] * ui[n + 1]
+                rhs[m - 1] += thg[n_links - 1] * ui[n + 1] * sc[m - 1]
             elif bc_type[1] == ROBIN:
-                rhs[m - 1] += bc_h[1] * (thi * ui[n + 1] + (1.0 - thi) * (ui[n] - Tn[n_nodes - 1]))
+                rhs[m - 1] += bc_h[1] * (thi * ui[n + 1] + (1.0 - thi) * (ui[n] - Tn[n_nodes - 1])) * sc[m - 1]
             else:
-                rhs[m - 1] -= thi * ui[n + 1] + (1.0 - thi) * ui[n]
-            # solve A0 x = rhs with the twisted factors of _factor_lean: two dependency chains of
-            # m/2 multiply-adds each way, interleaved, the running values in registers. Written out
-            # here (a call, or numba's inline="always", costs refcount operations and spills on the
-            # chain each step); needs FMA contraction (else a multiply plus an add per row).
-            for i in range(m):  # scaled right-hand side, off the chains (vectorises)
-                if i != k:
-                    rhs[i] *= inv[i]
-            # elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
-            # y_i = rhs_i/p_i - f1_i y_{i-1} (top), y_i = rhs_i/q_i - f1_i y_{i+1} (bottom)
+                rhs[m - 1] -= (thi * ui[n + 1] + (1.0 - thi) * ui[n]) * sc[m - 1]
+            # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
+            # chains (top and bottom half), interleaved, the running values in registers, each taking
+            # two rows per multiply-add by recursive doubling (pair coefficients c1, c2 of
+            # _pair_products): y_{t+1} = (r_{t+1} - f1_{t+1} r_t) + c1_{t+1} y_{t-1}, the row between
+            # off the chain. Written out here (a call, or numba's inline="always", costs refcount
+            # operations and spills on the chain each step); needs FMA contraction. Indices are
+            # unsigned (uint64), which spares numba's negative-index wraparound on every access.
+            # Elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
+            # y_i = r_i - f1_i y_{i-1} (top), y_i = r_i - f1_i y_{i+1} (bottom), r = rhs / pivot
             yt = rhs[0]
             yb = rhs[m - 1]
             Tu[0] = yt
             Tu[m - 1] = yb
-            for t in range(1, nb):
-                yt = rhs[t] - f1[t] * yt
-                Tu[t] = yt
-                ib = m - 1 - t
+            n_pair = max((nb - 1) // 2, 0)
+            for p in range(n_pair):
+                it = uint64(1 + 2 * p)  # rows it, it + 1
+                r0 = rhs[it]
+                r1 = rhs[it + 1]
+                ytn = (r1 - f1[it + 1] * r0) + c1[it + 1] * yt
+                Tu[it] = r0 - f1[it] * yt
+                Tu[it + 1] = ytn
+                yt = ytn
+                ib = uint64(m - 2 - 2 * p)  # rows ib, ib - 1
+                r0 = rhs[ib]
+                r1 = rhs[ib - 1]
+                ybn = (r1 - f1[ib - 1] * r0) + c1[ib - 1] * yb
+                Tu[ib] = r0 - f1[ib] * yb
+                Tu[ib - 1] = ybn
+                yb = ybn
+            for t in range(1 + 2 * n_pair, k):  # rows left in the top half (at most 2)
+                it = uint64(t)
+                yt = rhs[it] - f1[it] * yt
+                Tu[it] = yt
+            for t in range(m - 2 - 2 * n_pair, k, -1):  # row left in the bottom half (at most 1)
+                ib = uint64(t)
                 yb = rhs[ib] - f1[ib] * yb
                 Tu[ib] = yb
-            for t in range(max(nb, 1), k):  # the top half's extra row (m even)
-                yt = rhs[t] - f1[t] * yt
-                Tu[t] = yt
             xk = rhs[k]
             if k > 0:
                 xk -= f1[k] * Tu[k - 1]
@@ -601,20 +660,34 @@ def _run_one(
                 xk -= f2[k] * Tu[k + 1]
             xk *= inv[k]
             Tu[k] = xk
-            # substitution away from the twist
+            # substitution away from the twist: x_i = y_i - f2_i x_{i+1} (top), x_i = y_i - f2_i x_{i-1}
+            # (bottom), also two rows per multiply-add on the chains
             xt = xk
             xb = xk
-            for t in range(1, nb + 1):
-                it = k - t
+            n_pair = nb // 2
+            for p in range(n_pair):
+                it = uint64(k - 1 - 2 * p)  # rows it, it - 1
+                y0 = Tu[it]
+                y1 = Tu[it - 1]
+                xtn = (y1 - f2[it - 1] * y0) + c2[it - 1] * xt
+                Tu[it] = y0 - f2[it] * xt
+                Tu[it - 1] = xtn
+                xt = xtn
+                ib = uint64(k + 1 + 2 * p)  # rows ib, ib + 1
+                y0 = Tu[ib]
+                y1 = Tu[ib + 1]
+                xbn = (y1 - f2[ib + 1] * y0) + c2[ib + 1] * xb
+                Tu[ib] = y0 - f2[ib] * xb
+                Tu[ib + 1] = xbn
+                xb = xbn
+            for t in range(k - 1 - 2 * n_pair, -1, -1):  # rows left in the top half (at most 2)
+                it = uint64(t)
                 xt = Tu[it] - f2[it] * xt
                 Tu[it] = xt
-                ib = k + t
+            for t in range(k + 1 + 2 * n_pair, m):  # row left in the bottom half (at most 1)
+                ib = uint64(t)
                 xb = Tu[ib] - f2[ib] * xb
                 Tu[ib] = xb
-            for t in range(nb + 1, k + 1):  # the top half's extra row (m even)
-                it = k - t
-                xt = Tu[it] - f2[it] * xt
-                Tu[it] = xt
         # step-average face fluxes F^{n+1/2} (the scheme's own link fluxes: energy is conserved exactly)
         if dir_e:
             fe = Epad[1] + thg[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0])
@@ -634,9 +707,11 @@ def _run_one(
         e_out += dt * fi
         Fe[n & 3] = fe
         Fi[n & 3] = fi
-        row = (n + 1) & 3
-        for q in range(n_pr):
-            P[row, q] = (1.0 - pw[q]) * Tnew[pa[q]] + pw[q] * Tnew[pb[q]]
+        # probes at grid time n + 1, only when a pending output needs them (out_step is sorted)
+        if k_out < n_out and out_step[k_out] <= n + 1:
+            row = (n + 1) & 3
+            for q in range(n_pr):
+                P[row, q] = (1.0 - pw[q]) * Tnew[pa[q]] + pw[q] * Tnew[pb[q]]
         # outputs between grid nk and nk + 1 are complete once F^{nk+3/2} is known (nk = n - 1)
         while k_out < n_out and out_step[k_out] <= n - 1:
             _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out)
