@@ -292,24 +292,27 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, 
 
 
 @njit(cache=True)
-def _solve_coefficients(inv, f1, f2, k, m, sc, c1, c2):
+def _solve_coefficients(inv, f1, f2, k, m, sc, S):
     """Per-row coefficients of the step loop's twisted solve, from the factors of :func:`_factor_lean`:
-    sc, the scale of right-hand side row i (1/pivot, 1 at the twist row k), and the pair products
-    c1 (elimination) and c2 (substitution) that let each chain take two rows per multiply-add:
-    c1_t = f1_t f1_{t-1} (top, 2 <= t < k), c1_i = f1_i f1_{i+1} (bottom, k < i <= m - 3),
-    c2_i = f2_i f2_{i+1} (top, i <= k - 2), c2_i = f2_i f2_{i-1} (bottom, i >= k + 2)."""
+    sc, the scale of right-hand side row i (1/pivot, 1 at the twist row k), and, packed per row
+    (one base pointer for the chains), S[4 i: 4 i + 4] = (f1_i, c1_i, f2_i, c2_i) with the pair
+    products c1 (elimination) and c2 (substitution) that let each chain take two rows per
+    multiply-add: c1_t = f1_t f1_{t-1} (top, 2 <= t < k), c1_i = f1_i f1_{i+1} (bottom,
+    k < i <= m - 3), c2_i = f2_i f2_{i+1} (top, i <= k - 2), c2_i = f2_i f2_{i-1} (bottom, i >= k + 2)."""
     for i in range(m):
         sc[i] = inv[i] if i != k else 1.0
-        c1[i] = 0.0
-        c2[i] = 0.0
+        S[4 * i] = f1[i]
+        S[4 * i + 1] = 0.0
+        S[4 * i + 2] = f2[i]
+        S[4 * i + 3] = 0.0
     for i in range(2, k):
-        c1[i] = f1[i] * f1[i - 1]
+        S[4 * i + 1] = f1[i] * f1[i - 1]
     for i in range(k + 1, m - 2):
-        c1[i] = f1[i] * f1[i + 1]
+        S[4 * i + 1] = f1[i] * f1[i + 1]
     for i in range(0, k - 1):
-        c2[i] = f2[i] * f2[i + 1]
+        S[4 * i + 3] = f2[i] * f2[i + 1]
     for i in range(k + 2, m):
-        c2[i] = f2[i] * f2[i - 1]
+        S[4 * i + 3] = f2[i] * f2[i - 1]
 
 
 @njit(cache=True, fastmath=True)
@@ -469,8 +472,7 @@ def _run_one(
     wb = np.zeros(mm)
     rhs = np.zeros(mm)
     sc = np.ones(mm)  # scale of the right-hand side rows: 1/pivot, 1 at the twist row
-    c1 = np.zeros(mm)  # pair products of the solve (_solve_coefficients)
-    c2 = np.zeros(mm)
+    S = np.zeros(4 * mm)  # packed per-row coefficients of the solve (_solve_coefficients)
     k = m // 2  # twist row of the factorisation
     nb = m - 1 - k  # rows below it (k or k - 1)
     Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
@@ -478,9 +480,9 @@ def _run_one(
     Tnew = np.zeros(n_nodes)  # T^{n+1}; before the solve: the known faces and the predictor T~
     Tu = Tnew[j0 : j0 + m]  # its unknowns (view)
     Tmid = np.zeros(n_nodes)  # mid-step temperature of the step (lambda(T))
-    dTm = np.zeros(n_nodes)  # its change since the previous step
     Em = np.ones(n_links)  # link factors exp(f (T_m - T_ref)) at the mean mid-step temperature
     has_table = False
+    n_big = 0  # link factor updates beyond the polynomial's range (lambda(T))
     for lnk in range(n_links):
         omth[lnk] = 1.0 - theta[lnk]
         thg[lnk] = theta[lnk] * g0[lnk]
@@ -534,7 +536,7 @@ def _run_one(
         gex[lnk] = omth[lnk] * g0[lnk]
     if m > 0:
         _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
-        _solve_coefficients(inv, f1, f2, k, m, sc, c1, c2)
+        _solve_coefficients(inv, f1, f2, k, m, sc, S)
 
     e_in = 0.0
     e_out = 0.0
@@ -559,15 +561,9 @@ def _run_one(
         # explicit part of the link fluxes
         if nonlinear:
             if n > 0:  # (first step: g* = g0 from the start)
-                # lambda(T): passes over the links, each writing one array so that LLVM vectorises
-                # it (a loop writing several arrays needs more run-time aliasing checks than LLVM
-                # allows and stays scalar); no branches, integer counts. Node factors updated by
-                # exp(f dTmid) (polynomial), counting updates beyond the polynomial's range ...
-                n_big = 0
-                for lnk in range(n_links):
-                    x = coef[lnk] * (0.5 * (dTm[lnk] + dTm[lnk + 1]))
-                    n_big += 1 if abs(x) > 0.01 else 0
-                    Em[lnk] *= _exp_step(x)
+                # lambda(T): the link factors Em were brought to this step's mid-step temperature by
+                # the previous step's last pass (counting the updates beyond the polynomial's range
+                # in n_big); one pass over the links (vectorised: no branches, integer counts) ...
                 # ... then the Kirchhoff-mean conductances g* = g_ref Em sinh(x)/x (as
                 # _nonlinear_conductances), counting the links beyond the polynomial's range and those
                 # whose g* drifted more than tol from g0
@@ -591,7 +587,7 @@ def _run_one(
                 if n_drift > 0 and m > 0:
                     _set_factorised(g0, gs, theta, drift, lim, thg, tol)
                     _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
-                    _solve_coefficients(inv, f1, f2, k, m, sc, c1, c2)
+                    _solve_coefficients(inv, f1, f2, k, m, sc, S)
             # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
             for lnk in range(n_links):
                 dp = Tnew[lnk] - Tnew[lnk + 1]
@@ -618,11 +614,12 @@ def _run_one(
                 rhs[m - 1] -= (thi * ui[n + 1] + (1.0 - thi) * ui[n]) * sc[m - 1]
             # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
             # chains (top and bottom half), interleaved, the running values in registers, each taking
-            # two rows per multiply-add by recursive doubling (pair coefficients c1, c2 of
-            # _pair_products): y_{t+1} = (r_{t+1} - f1_{t+1} r_t) + c1_{t+1} y_{t-1}, the row between
-            # off the chain. Written out here (a call, or numba's inline="always", costs refcount
-            # operations and spills on the chain each step); needs FMA contraction. Indices are
-            # unsigned (uint64), which spares numba's negative-index wraparound on every access.
+            # two rows per multiply-add by recursive doubling (pair products c1, c2, packed with f1, f2
+            # per row in S by _solve_coefficients): y_{t+1} = (r_{t+1} - f1_{t+1} r_t) + c1_{t+1} y_{t-1},
+            # the row between off the chain. Written out here (a call, or numba's inline="always",
+            # costs refcount operations and spills on the chain each step); needs FMA contraction.
+            # Every index is unsigned (uint64(...)), which spares numba's negative-index wraparound
+            # (a sign test and two integer instructions per access).
             # Elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
             # y_i = r_i - f1_i y_{i-1} (top), y_i = r_i - f1_i y_{i+1} (bottom), r = rhs / pivot
             yt = rhs[0]
@@ -631,28 +628,28 @@ def _run_one(
             Tu[m - 1] = yb
             n_pair = max((nb - 1) // 2, 0)
             for p in range(n_pair):
-                it = uint64(1 + 2 * p)  # rows it, it + 1
-                r0 = rhs[it]
-                r1 = rhs[it + 1]
-                ytn = (r1 - f1[it + 1] * r0) + c1[it + 1] * yt
-                Tu[it] = r0 - f1[it] * yt
-                Tu[it + 1] = ytn
+                i0 = uint64(1 + 2 * p)  # top rows i0, i1 = i0 + 1
+                i1 = uint64(2 + 2 * p)
+                r0 = rhs[i0]
+                ytn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yt
+                Tu[i0] = r0 - S[uint64(4 * i0)] * yt
+                Tu[i1] = ytn
                 yt = ytn
-                ib = uint64(m - 2 - 2 * p)  # rows ib, ib - 1
-                r0 = rhs[ib]
-                r1 = rhs[ib - 1]
-                ybn = (r1 - f1[ib - 1] * r0) + c1[ib - 1] * yb
-                Tu[ib] = r0 - f1[ib] * yb
-                Tu[ib - 1] = ybn
+                i0 = uint64(m - 2 - 2 * p)  # bottom rows i0, i1 = i0 - 1
+                i1 = uint64(m - 3 - 2 * p)
+                r0 = rhs[i0]
+                ybn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yb
+                Tu[i0] = r0 - S[uint64(4 * i0)] * yb
+                Tu[i1] = ybn
                 yb = ybn
             for t in range(1 + 2 * n_pair, k):  # rows left in the top half (at most 2)
-                it = uint64(t)
-                yt = rhs[it] - f1[it] * yt
-                Tu[it] = yt
+                i0 = uint64(t)
+                yt = rhs[i0] - S[uint64(4 * i0)] * yt
+                Tu[i0] = yt
             for t in range(m - 2 - 2 * n_pair, k, -1):  # row left in the bottom half (at most 1)
-                ib = uint64(t)
-                yb = rhs[ib] - f1[ib] * yb
-                Tu[ib] = yb
+                i0 = uint64(t)
+                yb = rhs[i0] - S[uint64(4 * i0)] * yb
+                Tu[i0] = yb
             xk = rhs[k]
             if k > 0:
                 xk -= f1[k] * Tu[k - 1]
@@ -666,28 +663,28 @@ def _run_one(
             xb = xk
             n_pair = nb // 2
             for p in range(n_pair):
-                it = uint64(k - 1 - 2 * p)  # rows it, it - 1
-                y0 = Tu[it]
-                y1 = Tu[it - 1]
-                xtn = (y1 - f2[it - 1] * y0) + c2[it - 1] * xt
-                Tu[it] = y0 - f2[it] * xt
-                Tu[it - 1] = xtn
+                i0 = uint64(k - 1 - 2 * p)  # top rows i0, i1 = i0 - 1
+                i1 = uint64(k - 2 - 2 * p)
+                y0 = Tu[i0]
+                xtn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xt
+                Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xt
+                Tu[i1] = xtn
                 xt = xtn
-                ib = uint64(k + 1 + 2 * p)  # rows ib, ib + 1
-                y0 = Tu[ib]
-                y1 = Tu[ib + 1]
-                xbn = (y1 - f2[ib + 1] * y0) + c2[ib + 1] * xb
-                Tu[ib] = y0 - f2[ib] * xb
-                Tu[ib + 1] = xbn
+                i0 = uint64(k + 1 + 2 * p)  # bottom rows i0, i1 = i0 + 1
+                i1 = uint64(k + 2 + 2 * p)
+                y0 = Tu[i0]
+                xbn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xb
+                Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xb
+                Tu[i1] = xbn
                 xb = xbn
             for t in range(k - 1 - 2 * n_pair, -1, -1):  # rows left in the top half (at most 2)
-                it = uint64(t)
-                xt = Tu[it] - f2[it] * xt
-                Tu[it] = xt
+                i0 = uint64(t)
+                xt = Tu[i0] - S[uint64(4 * i0 + 2)] * xt
+                Tu[i0] = xt
             for t in range(k + 1 + 2 * n_pair, m):  # row left in the bottom half (at most 1)
-                ib = uint64(t)
-                xb = Tu[ib] - f2[ib] * xb
-                Tu[ib] = xb
+                i0 = uint64(t)
+                xb = Tu[i0] - S[uint64(4 * i0 + 2)] * xb
+                Tu[i0] = xb
         # step-average face fluxes F^{n+1/2} (the scheme's own link fluxes: energy is conserved exactly)
         if dir_e:
             fe = Epad[1] + thg[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0])
@@ -719,14 +716,30 @@ def _run_one(
         # next time level: T^n <- T^{n+1}; for lambda(T) also the next step's mid-step temperature
         # 1.5 T^{n+1} - 0.5 T^n, its change, and the predictor 2 T^{n+1} - T^n (into Tnew)
         if nonlinear:
-            for j in range(n_nodes):
-                t0 = Tn[j]
-                t1 = Tnew[j]
-                Tn[j] = t1
+            # ... and updates the link factors Em by exp(f dT_m) (polynomial) for the link's mean
+            # mid-step temperature change dT_m, counting updates beyond the polynomial's range. One
+            # pass over the links, node lnk shifted and node lnk + 1's new values recomputed (read
+            # before the next iteration overwrites them), the last node after it.
+            n_big = 0
+            for lnk in range(n_links):
+                t0 = Tn[lnk]
+                t1 = Tnew[lnk]
                 tm = 1.5 * t1 - 0.5 * t0
-                dTm[j] = tm - Tmid[j]
-                Tmid[j] = tm
-                Tnew[j] = 2.0 * t1 - t0
+                dtm = tm - Tmid[lnk]
+                tm1 = 1.5 * Tnew[lnk + 1] - 0.5 * Tn[lnk + 1]
+                dtm1 = tm1 - Tmid[lnk + 1]
+                x = coef[lnk] * (0.5 * (dtm + dtm1))
+                n_big += 1 if abs(x) > 0.01 else 0
+                Em[lnk] *= _exp_step(x)
+                Tn[lnk] = t1
+                Tmid[lnk] = tm
+                Tnew[lnk] = 2.0 * t1 - t0
+            j = n_nodes - 1
+            t0 = Tn[j]
+            t1 = Tnew[j]
+            Tn[j] = t1
+            Tmid[j] = 1.5 * t1 - 0.5 * t0
+            Tnew[j] = 2.0 * t1 - t0
         else:
             for j in range(n_nodes):
                 Tn[j] = Tnew[j]
