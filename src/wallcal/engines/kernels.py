@@ -19,23 +19,26 @@ matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances
 ``g*`` (Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the
 difference is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised
 only when ``g*`` drifts from ``g0``. The exponential law's Kirchhoff mean is evaluated as
-``g_ref Em sinh(x)/x`` with ``x = f (T_a - T_b) / 2`` and one factor per link at its mean
-temperature, ``Em = exp(f ((T_a + T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))``
-but without the division or the cancellation of ``E_a - E_b``. ``Em`` is updated multiplicatively
+``Gm sinh(x)/x`` with ``x = f (T_a - T_b) / 2`` and one factor per link at its mean temperature,
+``Gm = g_ref exp(f ((T_a + T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))`` but
+without the division or the cancellation of ``E_a - E_b``. ``Gm`` is updated multiplicatively
 with a short polynomial of ``f dT_m`` (exact ``exp`` when a step changes a temperature a lot, and
 every 1024 steps); ``sinh(x)/x`` is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``).
 
 Speed: the step loop of :func:`_run_one` is one numba function without calls on the common path
 (a call, or numba's ``inline="always"``, passes array structs and adds refcount operations that
 spill the solve's chains), compiled with FMA contraction only. Every pass over the links or nodes
-writes few arrays and reads few, which keeps LLVM's run-time aliasing checks under its limit so
-that the pass vectorises. The only serial work left is the twisted solve: two independent chains
-(top and bottom half) of m/2 rows each way, each chain taking two rows per multiply-add by
-recursive doubling (pair products precomputed at factorisation; the right-hand side is scaled by
-the pivots' inverses in the pass that forms it), with unsigned indices so that numba emits no
-negative-index wraparound. The time levels are shifted by one vectorised pass per step that also
-prepares the next lambda(T) step, instead of rotating array references (which costs refcounting in
-numba). Probe values are formed only at the steps whose outputs need them.
+writes few arrays and reads few (at most about eight), which keeps LLVM's run-time aliasing checks
+under its limit so that the pass vectorises; a pass that needs more stays scalar and costs several
+times as much (so lambda(T) fuses g* with the explicit fluxes only for a uniform theta, and the
+explicit fluxes are not recomputed per node in the right-hand side pass). The only serial work
+left is the twisted solve: two independent chains (top and bottom half) of m/2 rows each way,
+each chain taking two rows per multiply-add by recursive doubling (pair products precomputed at
+factorisation; the right-hand side is scaled by the pivots' inverses in the pass that forms it),
+with unsigned indices so that numba emits no negative-index wraparound. The time levels are
+shifted by one vectorised pass per step that also prepares the next lambda(T) step, instead of
+rotating array references (which costs refcounting in numba). Probe values are formed only at the
+steps whose outputs need them.
 
 Boundary codes: 0 surface temperature (Dirichlet), 1 air temperature with a
 surface coefficient (Robin), 2 heat flux density (positive towards the interior).
@@ -322,10 +325,10 @@ def _exp_step(x):
 
 
 @njit(cache=True)
-def _exact_factors(coef, tref, Tmid, Em):
-    """Link factors exp(f (T_m - T_ref)) at the link's mean temperature T_m = (T_a + T_b) / 2."""
-    for lnk in range(Em.shape[0]):
-        Em[lnk] = np.exp(coef[lnk] * (0.5 * (Tmid[lnk] + Tmid[lnk + 1]) - tref[lnk]))
+def _exact_factors(coef, tref, g_ref, Tmid, Gm):
+    """Link factors g_ref exp(f (T_m - T_ref)) at the link's mean temperature T_m = (T_a + T_b) / 2."""
+    for lnk in range(Gm.shape[0]):
+        Gm[lnk] = g_ref[lnk] * np.exp(coef[lnk] * (0.5 * (Tmid[lnk] + Tmid[lnk + 1]) - tref[lnk]))
 
 
 @njit(cache=True, fastmath=True)
@@ -340,18 +343,18 @@ SINHC_U_MAX = 0.0625  # |x| <= 0.25, i.e. |f (T_a - T_b)| <= 0.5
 
 
 @njit(cache=True)
-def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Em):
+def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm):
     """Kirchhoff-mean conductances g = g_ref (E_a - E_b) / (f (T_a - T_b)) of the exponential law
-    E = exp(f (T - T_ref)), written with the link's mean-temperature factor Em (:func:`_exact_factors`)
-    as g = g_ref Em sinh(x) / x, x = f (T_a - T_b) / 2 (no cancellation, no division; the closed form
-    beyond the polynomial's range). A constant link has f = 0, so g = g_ref exactly. Table links are
-    evaluated by Simpson's rule."""
+    E = exp(f (T - T_ref)), written with the link's mean-temperature factor Gm = g_ref E_m
+    (:func:`_exact_factors`) as g = Gm sinh(x) / x, x = f (T_a - T_b) / 2 (no cancellation, no
+    division; the closed form beyond the polynomial's range). A constant link has f = 0, so
+    g = g_ref exactly. Table links are evaluated by Simpson's rule."""
     n_links = gs.shape[0]
     for lnk in range(n_links):
         d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
         u = 0.25 * d * d
         if u <= SINHC_U_MAX:
-            gs[lnk] = g_ref[lnk] * (Em[lnk] * _sinhc(u))
+            gs[lnk] = Gm[lnk] * _sinhc(u)
         else:
             ea = np.exp(coef[lnk] * (Tmid[lnk] - tref[lnk]))
             eb = np.exp(coef[lnk] * (Tmid[lnk + 1] - tref[lnk]))
@@ -442,13 +445,15 @@ def _run_one(
       order is kept, the steady state is exact, and the matrix is refactorised only when ``g*``
       drifts from ``g0`` (see :func:`_set_factorised`).
 
-    Layout of a step (see the module docstring for why): lambda(T) only, two vectorised passes
-    over the links (link factors ``Em``; ``g*`` with the two counts that trigger the rare branch:
-    exact factors / closed form / table laws, refactorisation); the explicit fluxes ``E``; the
-    right-hand side, scaled for the solve; the solve, written out (two chains, two rows per
-    multiply-add); the scalar face fluxes, probes (only when an output needs them) and outputs; one
-    pass over the nodes that shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the next step
-    (mid-step temperature, its change, the predictor written into ``Tnew``).
+    Layout of a step (see the module docstring for why): lambda(T) only, one vectorised pass over
+    the links forming ``g*`` and the two counts that trigger the rare branch (exact factors / closed
+    form / table laws, refactorisation) and, when every link has the same theta, the explicit fluxes
+    ``E`` without storing ``g*`` (else ``g*`` is stored and ``E`` formed by a second pass, as after a
+    rare branch); the right-hand side, scaled for the solve; the solve, written out (two chains, two
+    rows per multiply-add); the scalar face fluxes, probes (only when an output needs them) and
+    outputs; one pass over the links that shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the
+    next step: mid-step temperature, the predictor written into ``Tnew``, and the link factors
+    ``Gm`` updated for the change of the mean mid-step temperature.
     """
     n_nodes = cap.shape[0]
     n_links = g_ref.shape[0]
@@ -480,14 +485,19 @@ def _run_one(
     Tnew = np.zeros(n_nodes)  # T^{n+1}; before the solve: the known faces and the predictor T~
     Tu = Tnew[j0 : j0 + m]  # its unknowns (view)
     Tmid = np.zeros(n_nodes)  # mid-step temperature of the step (lambda(T))
-    Em = np.ones(n_links)  # link factors exp(f (T_m - T_ref)) at the mean mid-step temperature
+    Gm = g_ref.copy()  # link factors g_ref exp(f (T_m - T_ref)) at the mean mid-step temperature
     has_table = False
+    th0 = theta[0] if n_links > 0 else 0.5
+    om0 = 1.0 - th0
+    uniform_theta = True  # one theta for every link (the fused lambda(T) pass)
     n_big = 0  # link factor updates beyond the polynomial's range (lambda(T))
     for lnk in range(n_links):
         omth[lnk] = 1.0 - theta[lnk]
         thg[lnk] = theta[lnk] * g0[lnk]
         if kind[lnk] == 2:
             has_table = True
+        if theta[lnk] != th0:
+            uniform_theta = False
     cdt = np.empty(n_nodes)
     for j in range(n_nodes):
         cdt[j] = cap[j] / dt
@@ -526,8 +536,8 @@ def _run_one(
         Tmid[j] = Tn[j]
         e_start += cap[j] * Tn[j]
     if nonlinear:
-        _exact_factors(coef, tref, Tmid, Em)
-        _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Em)
+        _exact_factors(coef, tref, g_ref, Tmid, Gm)
+        _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm)
         _drift_limits(cap, theta, dt, bc_type, lim)
         _set_factorised(g0, gs, theta, drift, lim, thg, tol)
     # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
@@ -560,38 +570,60 @@ def _run_one(
             Tnew[n_nodes - 1] = ui[n + 1]
         # explicit part of the link fluxes
         if nonlinear:
-            if n > 0:  # (first step: g* = g0 from the start)
-                # lambda(T): the link factors Em were brought to this step's mid-step temperature by
+            # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
+            fresh = n == 0  # E still to be formed from the array gs (first step: g* = g0 from the start)
+            if n > 0:
+                # lambda(T): the link factors Gm were brought to this step's mid-step temperature by
                 # the previous step's last pass (counting the updates beyond the polynomial's range
-                # in n_big); one pass over the links (vectorised: no branches, integer counts) ...
-                # ... then the Kirchhoff-mean conductances g* = g_ref Em sinh(x)/x (as
-                # _nonlinear_conductances), counting the links beyond the polynomial's range and those
-                # whose g* drifted more than tol from g0
+                # in n_big). One pass over the links (vectorised: no branches, integer counts) forms
+                # the Kirchhoff-mean conductances g* = Gm sinh(x)/x (as _nonlinear_conductances),
+                # counts the links beyond the polynomial's range and those whose g* drifted more than
+                # tol from g0, and, when every link has the same theta (reading few arrays keeps the
+                # pass vectorised), the explicit fluxes E too, without storing g*; the rare branches
+                # (exact factors, table laws, refactorisation) store g* and form E afterwards.
                 n_drift = 0
-                for lnk in range(n_links):
-                    d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
-                    u = 0.25 * d * d
-                    n_big += 1 if u > SINHC_U_MAX else 0
-                    gk = g_ref[lnk] * (Em[lnk] * _sinhc(u))
-                    gs[lnk] = gk
-                    n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
+                if uniform_theta:
+                    for lnk in range(n_links):
+                        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+                        u = 0.25 * d * d
+                        n_big += 1 if u > SINHC_U_MAX else 0
+                        gk = Gm[lnk] * _sinhc(u)
+                        g0k = g0[lnk]
+                        n_drift += 1 if abs(gk - g0k) > tol[lnk] else 0
+                        dp = Tnew[lnk] - Tnew[lnk + 1]
+                        Epad[lnk + 1] = gk * (th0 * dp + om0 * (Tn[lnk] - Tn[lnk + 1])) - (th0 * g0k) * dp
+                else:
+                    fresh = True
+                    for lnk in range(n_links):
+                        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+                        u = 0.25 * d * d
+                        n_big += 1 if u > SINHC_U_MAX else 0
+                        gk = Gm[lnk] * _sinhc(u)
+                        gs[lnk] = gk
+                        n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
-                    _exact_factors(coef, tref, Tmid, Em)
+                    fresh = True
+                    _exact_factors(coef, tref, g_ref, Tmid, Gm)
                     _nonlinear_conductances(
-                        gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Em
+                        gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm
                     )
                     n_drift = 0
                     for lnk in range(n_links):
                         if abs(gs[lnk] - g0[lnk]) > tol[lnk]:
                             n_drift += 1
+                elif n_drift > 0 and not fresh:  # g* of the fused pass, stored for the refactorisation
+                    fresh = True
+                    for lnk in range(n_links):
+                        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+                        gs[lnk] = Gm[lnk] * _sinhc(0.25 * d * d)
                 if n_drift > 0 and m > 0:
                     _set_factorised(g0, gs, theta, drift, lim, thg, tol)
                     _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
                     _solve_coefficients(inv, f1, f2, k, m, sc, S)
-            # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
-            for lnk in range(n_links):
-                dp = Tnew[lnk] - Tnew[lnk + 1]
-                Epad[lnk + 1] = gs[lnk] * (theta[lnk] * dp + omth[lnk] * (Tn[lnk] - Tn[lnk + 1])) - thg[lnk] * dp
+            if fresh:
+                for lnk in range(n_links):
+                    dp = Tnew[lnk] - Tnew[lnk + 1]
+                    Epad[lnk + 1] = gs[lnk] * (theta[lnk] * dp + omth[lnk] * (Tn[lnk] - Tn[lnk + 1])) - thg[lnk] * dp
         else:
             for lnk in range(n_links):
                 Epad[lnk + 1] = gex[lnk] * (Tn[lnk] - Tn[lnk + 1])
@@ -716,7 +748,7 @@ def _run_one(
         # next time level: T^n <- T^{n+1}; for lambda(T) also the next step's mid-step temperature
         # 1.5 T^{n+1} - 0.5 T^n, its change, and the predictor 2 T^{n+1} - T^n (into Tnew)
         if nonlinear:
-            # ... and updates the link factors Em by exp(f dT_m) (polynomial) for the link's mean
+            # ... and updates the link factors Gm by exp(f dT_m) (polynomial) for the link's mean
             # mid-step temperature change dT_m, counting updates beyond the polynomial's range. One
             # pass over the links, node lnk shifted and node lnk + 1's new values recomputed (read
             # before the next iteration overwrites them), the last node after it.
@@ -730,7 +762,7 @@ def _run_one(
                 dtm1 = tm1 - Tmid[lnk + 1]
                 x = coef[lnk] * (0.5 * (dtm + dtm1))
                 n_big += 1 if abs(x) > 0.01 else 0
-                Em[lnk] *= _exp_step(x)
+                Gm[lnk] *= _exp_step(x)
                 Tn[lnk] = t1
                 Tmid[lnk] = tm
                 Tnew[lnk] = 2.0 * t1 - t0
