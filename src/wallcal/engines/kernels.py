@@ -36,9 +36,10 @@ left is the twisted solve: two independent chains (top and bottom half) of m/2 r
 each chain taking two rows per multiply-add by recursive doubling (pair products precomputed at
 factorisation; the right-hand side is scaled by the pivots' inverses in the pass that forms it),
 with unsigned indices so that numba emits no negative-index wraparound. The time levels are
-shifted by one vectorised pass per step that also prepares the next lambda(T) step, instead of
-rotating array references (which costs refcounting in numba). Probe values are formed only at the
-steps whose outputs need them.
+shifted by one vectorised pass per step (for lambda(T) over zero-padded buffers, so that it has no
+scalar remainder) that also prepares the next lambda(T) step, instead of rotating array
+references (which costs refcounting in numba). Probe values are formed only at the steps whose
+outputs need them.
 
 Boundary codes: 0 surface temperature (Dirichlet), 1 air temperature with a
 surface coefficient (Robin), 2 heat flux density (positive towards the interior).
@@ -297,17 +298,20 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, 
 @njit(cache=True)
 def _solve_coefficients(inv, f1, f2, k, m, sc, S):
     """Per-row coefficients of the step loop's twisted solve, from the factors of :func:`_factor_lean`:
-    sc, the scale of right-hand side row i (1/pivot, 1 at the twist row k), and, packed per row
-    (one base pointer for the chains), S[4 i: 4 i + 4] = (f1_i, c1_i, f2_i, c2_i) with the pair
+    sc, the scale of right-hand side row i (1/pivot; 1/gamma at the twist row k), and, packed per
+    row (one base pointer for the chains), S[4 i: 4 i + 4] = (f1_i, c1_i, f2_i, c2_i) with the pair
     products c1 (elimination) and c2 (substitution) that let each chain take two rows per
     multiply-add: c1_t = f1_t f1_{t-1} (top, 2 <= t < k), c1_i = f1_i f1_{i+1} (bottom,
-    k < i <= m - 3), c2_i = f2_i f2_{i+1} (top, i <= k - 2), c2_i = f2_i f2_{i-1} (bottom, i >= k + 2)."""
+    k < i <= m - 3), c2_i = f2_i f2_{i+1} (top, i <= k - 2), c2_i = f2_i f2_{i-1} (bottom, i >= k + 2);
+    at the twist row, c1_k = f1_k / gamma and c2_k = f2_k / gamma (its couplings b_{k-1}, b_k scaled)."""
     for i in range(m):
-        sc[i] = inv[i] if i != k else 1.0
+        sc[i] = inv[i]
         S[4 * i] = f1[i]
         S[4 * i + 1] = 0.0
         S[4 * i + 2] = f2[i]
         S[4 * i + 3] = 0.0
+    S[4 * k + 1] = f1[k] * inv[k]  # twist row: couplings to rows k - 1 and k + 1, scaled by 1/gamma
+    S[4 * k + 3] = f2[k] * inv[k]
     for i in range(2, k):
         S[4 * i + 1] = f1[i] * f1[i - 1]
     for i in range(k + 1, m - 2):
@@ -476,16 +480,27 @@ def _run_one(
     wa = np.zeros(mm)
     wb = np.zeros(mm)
     rhs = np.zeros(mm)
-    sc = np.ones(mm)  # scale of the right-hand side rows: 1/pivot, 1 at the twist row
+    sc = np.ones(mm)  # scale of the right-hand side rows (1/pivot, 1/gamma at the twist row)
     S = np.zeros(4 * mm)  # packed per-row coefficients of the solve (_solve_coefficients)
     k = m // 2  # twist row of the factorisation
     nb = m - 1 - k  # rows below it (k or k - 1)
     Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
-    Tn = np.zeros(n_nodes)  # T^n
-    Tnew = np.zeros(n_nodes)  # T^{n+1}; before the solve: the known faces and the predictor T~
+    # the last pass of a lambda(T) step runs over n_pad > n_links links, a multiple of 4 (the vector
+    # width), on buffers padded with zeros: no scalar remainder, no separate last node
+    n_pad = (n_links // 4 + 1) * 4
+    TnB = np.zeros(n_pad + 1)
+    TnewB = np.zeros(n_pad + 1)
+    TmidB = np.zeros(n_pad + 1)
+    GmB = np.zeros(n_pad)
+    coefB = np.zeros(n_pad)
+    Tn = TnB[:n_nodes]  # T^n
+    Tnew = TnewB[:n_nodes]  # T^{n+1}; before the solve: the known faces and the predictor T~
     Tu = Tnew[j0 : j0 + m]  # its unknowns (view)
-    Tmid = np.zeros(n_nodes)  # mid-step temperature of the step (lambda(T))
-    Gm = g_ref.copy()  # link factors g_ref exp(f (T_m - T_ref)) at the mean mid-step temperature
+    Tmid = TmidB[:n_nodes]  # mid-step temperature of the step (lambda(T))
+    Gm = GmB[:n_links]  # link factors g_ref exp(f (T_m - T_ref)) at the mean mid-step temperature
+    for lnk in range(n_links):
+        Gm[lnk] = g_ref[lnk]
+        coefB[lnk] = coef[lnk]
     has_table = False
     th0 = theta[0] if n_links > 0 else 0.5
     om0 = 1.0 - th0
@@ -628,7 +643,7 @@ def _run_one(
             for lnk in range(n_links):
                 Epad[lnk + 1] = gex[lnk] * (Tn[lnk] - Tn[lnk + 1])
         if m > 0:
-            # right-hand side, scaled by the pivots' inverses (row k by 1: sc) for the solve
+            # right-hand side, scaled by the pivots' inverses (sc) for the solve
             for i in range(m):
                 j = j0 + i
                 rhs[i] = (cdt[j] * Tn[j] + Epad[j] - Epad[j + 1]) * sc[i]
@@ -682,12 +697,13 @@ def _run_one(
                 i0 = uint64(t)
                 yb = rhs[i0] - S[uint64(4 * i0)] * yb
                 Tu[i0] = yb
+            # twist row (its right-hand side and couplings pre-scaled by 1/gamma), from the chains'
+            # last values still in registers
             xk = rhs[k]
             if k > 0:
-                xk -= f1[k] * Tu[k - 1]
+                xk -= S[4 * k + 1] * yt
             if k < m - 1:
-                xk -= f2[k] * Tu[k + 1]
-            xk *= inv[k]
+                xk -= S[4 * k + 3] * yb
             Tu[k] = xk
             # substitution away from the twist: x_i = y_i - f2_i x_{i+1} (top), x_i = y_i - f2_i x_{i-1}
             # (bottom), also two rows per multiply-add on the chains
@@ -751,27 +767,22 @@ def _run_one(
             # ... and updates the link factors Gm by exp(f dT_m) (polynomial) for the link's mean
             # mid-step temperature change dT_m, counting updates beyond the polynomial's range. One
             # pass over the links, node lnk shifted and node lnk + 1's new values recomputed (read
-            # before the next iteration overwrites them), the last node after it.
+            # before the next iteration overwrites them); the padding links (factor 0, f = 0) shift
+            # the last node and keep the padding nodes at 0.
             n_big = 0
-            for lnk in range(n_links):
-                t0 = Tn[lnk]
-                t1 = Tnew[lnk]
+            for lnk in range(n_pad):
+                t0 = TnB[lnk]
+                t1 = TnewB[lnk]
                 tm = 1.5 * t1 - 0.5 * t0
-                dtm = tm - Tmid[lnk]
-                tm1 = 1.5 * Tnew[lnk + 1] - 0.5 * Tn[lnk + 1]
-                dtm1 = tm1 - Tmid[lnk + 1]
-                x = coef[lnk] * (0.5 * (dtm + dtm1))
+                dtm = tm - TmidB[lnk]
+                tm1 = 1.5 * TnewB[lnk + 1] - 0.5 * TnB[lnk + 1]
+                dtm1 = tm1 - TmidB[lnk + 1]
+                x = coefB[lnk] * (0.5 * (dtm + dtm1))
                 n_big += 1 if abs(x) > 0.01 else 0
-                Gm[lnk] *= _exp_step(x)
-                Tn[lnk] = t1
-                Tmid[lnk] = tm
-                Tnew[lnk] = 2.0 * t1 - t0
-            j = n_nodes - 1
-            t0 = Tn[j]
-            t1 = Tnew[j]
-            Tn[j] = t1
-            Tmid[j] = 1.5 * t1 - 0.5 * t0
-            Tnew[j] = 2.0 * t1 - t0
+                GmB[lnk] *= _exp_step(x)
+                TnB[lnk] = t1
+                TmidB[lnk] = tm
+                TnewB[lnk] = 2.0 * t1 - t0
         else:
             for j in range(n_nodes):
                 Tn[j] = Tnew[j]
