@@ -30,9 +30,10 @@ from the state at its *anchor* ``base = max(nk - 1, 0)``: the later states are
 
     y = Ge . z^base + H . (s^base, s^base+1, s^base+2) + D . feat,
 
-where ``Ge = G diag(P(mu))`` and ``H`` depend on the candidate and on the
-output's weight *pattern* (a few: interior, first and last output times; an
-output between grid times combines two) and are computed once per candidate.
+where ``Ge = G diag(P(mu))`` (times the state's scale in the kernel, see
+above) and ``H`` depend on the candidate and on the output's weight *pattern*
+(a few: interior, first and last output times; an output between grid times
+combines two) and are computed once per candidate.
 An output then costs one multiply-add per mode and requested row, fused into
 the pass over the modes that steps on to the next anchor.
 
@@ -379,9 +380,10 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
 
 
 @njit(cache=True, fastmath=True)
-def _pattern_coefficients(mu, r0, r1, G, npr, rq, wp, wf, Ge, H):
-    """Per output pattern and requested row: ``Ge = G P(mu)`` over the anchor state and ``H``, the
-    coefficients of ``s`` at steps base .. base + 2 (channels interleaved); see the module docstring."""
+def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
+    """Per output pattern and requested row: ``Gs = G P(mu) rho`` over the anchor's scaled state
+    ``y = z / rho`` and ``H``, the coefficients of ``s`` at steps base .. base + 2 (channels
+    interleaved); see the module docstring."""
     m = mu.shape[0]
     P = np.empty(m)
     Q = np.empty((3, m))
@@ -395,7 +397,7 @@ def _pattern_coefficients(mu, r0, r1, G, npr, rq, wp, wf, Ge, H):
                 Q[1, k] = w[2] + u * w[3]
                 Q[2, k] = w[3]
             for k in range(m):
-                Ge[p, q, k] = G[q, k] * P[k]
+                Gs[p, q, k] = G[q, k] * P[k] * rho[k]
             for i in range(3):
                 h0 = 0.0
                 h1 = 0.0
@@ -465,20 +467,20 @@ def _dots_step5(y, mu, al, s, n, gf):
 
 
 @njit(cache=True, fastmath=True, inline="always")
-def _form(k_out, z, Ge, rq, opat, ow, out):
+def _form(k_out, y, Gs, rq, opat, ow, out):
     """The state part of output k_out from the state at its anchor: a dot product per requested
     row and pattern (the input terms are added by :func:`_input_terms`)."""
-    m = z.shape[0]
+    m = y.shape[0]
     for q in rq:
         acc = 0.0
         for c2 in range(2):
             wgt = ow[k_out, c2]
             if wgt == 0.0:
                 continue
-            gq = Ge[opat[k_out, c2], q]
+            gq = Gs[opat[k_out, c2], q]
             dot = 0.0
             for k in range(m):
-                dot += gq[k] * z[k]
+                dot += gq[k] * y[k]
             acc += wgt * dot
         out[q, k_out] = acc
 
@@ -610,11 +612,6 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
                 c = col[i]
                 for k in range(m):
                     G[q, k] += h * zt[k, c]
-    # per output pattern: Ge = G P(mu) and H (row n_q stays zero: the padding of the fused rows)
-    n_pat = wp.shape[0]
-    Ge = np.zeros((n_pat, n_q + 1, m))
-    H = np.zeros((n_pat, n_q + 1, 6))
-    _pattern_coefficients(mu, r0, r1, G, npr, rq, wp, wf, Ge, H)
     # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
     # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
     # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
@@ -632,11 +629,12 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
         rho[k] = rk
         al[k] = r0[k] / rk
         y[k] = z[k] / rk
-    Gs = np.empty_like(Ge)
-    for p in range(Ge.shape[0]):
-        for q in range(Ge.shape[1]):
-            for k in range(m):
-                Gs[p, q, k] = Ge[p, q, k] * rho[k]
+    # per output pattern: Gs = G P(mu) rho over the scaled state and H (row n_q stays zero: the
+    # padding of the fused rows)
+    n_pat = wp.shape[0]
+    Gs = np.zeros((n_pat, n_q + 1, m))
+    H = np.zeros((n_pat, n_q + 1, 6))
+    _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H)
     # the fused rows of the main pattern, extracted once (a view per output would cost reference
     # counting in the loop; other patterns go through _form)
     pm0 = pmain[0]
