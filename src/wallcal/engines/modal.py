@@ -50,7 +50,7 @@ Per candidate (everything inside the numba batch loop, in parallel over candidat
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
    over the steps: between two anchors five steps apart (5-minute data at
    1-minute steps), one loop over the modes forms the anchor's output rows and
-   steps five times (:func:`_dots_step5`); otherwise the rows are formed
+   steps five times (:func:`_dots_step5`, :func:`_dots3_step5`); otherwise the rows are formed
    (:func:`_form`) and the state is stepped four steps per pass (:func:`_advance`).
    Memory does not depend on the number of steps.
 """
@@ -467,6 +467,34 @@ def _dots_step5(y, mu, al, s, n, gf):
 
 
 @njit(cache=True, fastmath=True, inline="always")
+def _dots3_step5(y, mu, al, s, n, gf):
+    """:func:`_dots_step5` for at most three requested rows (a calibration's usual targets).
+
+    A deliberate copy with three accumulators: the row count must be fixed at compile time for the
+    loop to vectorise with its accumulators in registers, and two rows fewer make the kernel of a
+    three-target calibration ~10 % faster (interleaved A/B of the two kernels, bundled example)."""
+    m = y.shape[0]
+    a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
+    b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
+    d0 = 0.0
+    d1 = 0.0
+    d2 = 0.0
+    for k in range(m):
+        zk = y[k]
+        d0 += gf[0, k] * zk
+        d1 += gf[1, k] * zk
+        d2 += gf[2, k] * zk
+        u = mu[k]
+        f = al[k]
+        zk = u * zk + (f * a0 + b0)
+        zk = u * zk + (f * a1 + b1)
+        zk = u * zk + (f * a2 + b2)
+        zk = u * zk + (f * a3 + b3)
+        y[k] = u * zk + (f * a4 + b4)
+    return d0, d1, d2
+
+
+@njit(cache=True, fastmath=True, inline="always")
 def _form(k_out, y, Gs, rq, opat, ow, out):
     """The state part of output k_out from the state at its anchor: a dot product per requested
     row and pattern (the input terms are added by :func:`_input_terms`)."""
@@ -658,9 +686,14 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
         nxt = base[k2] if k2 < n_out else n_steps
         if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
             w0 = ow[last, 0]
-            d5 = _dots_step5(y, mu, al, s, b, gf)
-            for i in range(n_rq):
-                out[fq[i], last] = w0 * d5[i]
+            if n_rq <= 3:
+                d3 = _dots3_step5(y, mu, al, s, b, gf)
+                for i in range(n_rq):
+                    out[fq[i], last] = w0 * d3[i]
+            else:
+                d5 = _dots_step5(y, mu, al, s, b, gf)
+                for i in range(n_rq):
+                    out[fq[i], last] = w0 * d5[i]
             cur = b + 5
         else:
             _form(last, y, Gs, rq, opat, ow, out)
@@ -699,7 +732,7 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want
     Returns out (c, p + 2, k) and the final node temperatures (c, j) (known face nodes included).
     """
     nc = cap.shape[0]
-    out = np.empty((nc, pa.shape[1] + 2, plan.base.shape[0]))
+    out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
     tend = np.empty(cap.shape)
     for c in prange(nc):
         _modal_one(
@@ -712,7 +745,7 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want
 def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
     """:func:`modal_batch` on the calling thread (small batches: no thread wake-up latency)."""
     nc = cap.shape[0]
-    out = np.empty((nc, pa.shape[1] + 2, plan.base.shape[0]))
+    out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
     tend = np.empty(cap.shape)
     for c in range(nc):
         _modal_one(
