@@ -485,9 +485,10 @@ def _run_one(
     k = m // 2  # twist row of the factorisation
     nb = m - 1 - k  # rows below it (k or k - 1)
     Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
-    # the last pass of a lambda(T) step runs over n_pad > n_links links, a multiple of 4 (the vector
-    # width), on buffers padded with zeros: no scalar remainder, no separate last node
-    n_pad = (n_links // 4 + 1) * 4
+    # the last pass of a lambda(T) step runs over n_pad > n_links links, a multiple of 8 (the vector
+    # width with 512-bit vectors, two vectors with 256-bit ones), on buffers padded with zeros: no
+    # scalar or narrower remainder loop, no separate last node (multiples of 4 measured ~5 % slower)
+    n_pad = (n_links // 8 + 1) * 8
     TnB = np.zeros(n_pad + 1)
     TnewB = np.zeros(n_pad + 1)
     TmidB = np.zeros(n_pad + 1)
