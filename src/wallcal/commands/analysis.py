@@ -26,6 +26,18 @@ def _out(args, default: str) -> Path:
     return Path(args.out) if args.out else Path(args.study).resolve().parent / default
 
 
+def _study_space_optimum(args):
+    """The study, its calibration space and the optimum saved under ``--from`` (None without it)."""
+    from ..analysis import load_optimum
+    from ..calibration.space import parse_space
+    from ..study import load_study
+
+    study = load_study(args.study)
+    space = parse_space(study)
+    x0 = load_optimum(space, args.from_dir) if args.from_dir else None
+    return study, space, x0
+
+
 def register(sub) -> None:
     g = sub.add_parser(
         "grid-study",
@@ -163,14 +175,9 @@ def run_grid_study(args) -> int:
 
 
 def run_sensitivity(args) -> int:
-    from ..analysis import load_optimum
     from ..analysis.sensitivity import sensitivity
-    from ..calibration.space import parse_space
-    from ..study import load_study
 
-    study = load_study(args.study)
-    space = parse_space(study)
-    x0 = load_optimum(space, args.from_dir) if args.from_dir else None
+    study, space, x0 = _study_space_optimum(args)
     res = sensitivity(study, args.method, space=space, x0=x0, n=args.samples, seed=args.seed, progress=not args.quiet)
     out = _out(args, "sensitivity")
     cols = {
@@ -191,14 +198,9 @@ def run_sensitivity(args) -> int:
 
 
 def run_identifiability(args) -> int:
-    from ..analysis import load_optimum
     from ..analysis.identifiability import identifiability
-    from ..calibration.space import parse_space
-    from ..study import load_study
 
-    study = load_study(args.study)
-    space = parse_space(study)
-    x0 = load_optimum(space, args.from_dir) if args.from_dir else None
+    study, _, x0 = _study_space_optimum(args)
     at = f"calibrated optimum ({args.from_dir})" if args.from_dir else "base case"
     res = identifiability(study, x0=x0, at=at, targets=_targets(args.targets), sigma=args.sigma)
     out = _out(args, "identifiability")
@@ -277,18 +279,12 @@ def _print_combinations(a):
 
 
 def run_posterior(args) -> int:
-    from ..analysis import load_optimum
     from ..analysis.identifiability import identifiability
     from ..analysis.posterior import posterior
-    from ..calibration.space import parse_space
-    from ..study import load_study
 
-    study = load_study(args.study)
-    space = parse_space(study)
+    study, _, x0 = _study_space_optimum(args)
     out = _out(args, "posterior")
-    if args.from_dir:
-        x0 = load_optimum(space, args.from_dir)
-    else:
+    if x0 is None:
         from ..calibration import calibrate
 
         print("no --from: calibrating first to find the starting point")
