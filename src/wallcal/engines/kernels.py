@@ -13,8 +13,10 @@ joins, so the scheme conserves energy exactly; :func:`run_batch` reports the
 balance.
 
 The loop is written as link fluxes: ``F_l = E_l + theta_l g0_l (T^{n+1}_a - T^{n+1}_b)`` with the
-explicit part ``E_l`` computed first, the right-hand side ``Cap/dt T^n + sum of E`` and one lean
-Thomas solve with a matrix factorised at conductances ``g0``. For constant conductances the
+explicit part ``E_l`` computed first, the right-hand side ``Cap/dt T^n + sum of E`` and one
+tridiagonal solve with a matrix factorised at conductances ``g0``: up to
+:data:`~wallcal.engines.pcr.PCR_MAX_ROWS` unknowns by parallel cyclic reduction held in vector
+registers (:mod:`wallcal.engines.pcr`), beyond by a lean twisted LU solve. For constant conductances the
 matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances of the step
 ``g*`` (Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the
 difference is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised
@@ -31,9 +33,11 @@ spill the solve's chains), compiled with FMA contraction only. Every pass over t
 writes few arrays and reads few (at most about eight), which keeps LLVM's run-time aliasing checks
 under its limit so that the pass vectorises; a pass that needs more stays scalar and costs several
 times as much (so lambda(T) fuses g* with the explicit fluxes only for a uniform theta, and the
-explicit fluxes are not recomputed per node in the right-hand side pass). The only serial work
-left is the twisted solve: two independent chains (top and bottom half) of m/2 rows each way,
-each chain taking two rows per multiply-add by recursive doubling (pair products precomputed at
+explicit fluxes are not recomputed per node in the right-hand side pass). The solve by reduction
+is a few dozen vector instructions per level, no loop, emitted as LLVM IR (see
+:mod:`wallcal.engines.pcr`); it halves the cost of the twisted solve, the only serial work left
+for larger walls: two independent chains (top and bottom half) of m/2 rows each way, each chain
+taking two rows per multiply-add by recursive doubling (pair products precomputed at
 factorisation; the right-hand side is scaled by the pivots' inverses in the pass that forms it),
 with unsigned indices so that numba emits no negative-index wraparound. The time levels are
 shifted by one vectorised pass per step (for lambda(T) over zero-padded buffers, so that it has no
@@ -51,6 +55,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange, uint64
+
+from .pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, pcr_coefficients, pcr_solve
 
 DIRICHLET = 0
 ROBIN = 1
@@ -479,9 +485,20 @@ def _run_one(
     f2 = np.zeros(mm)
     wa = np.zeros(mm)
     wb = np.zeros(mm)
-    rhs = np.zeros(mm)
-    sc = np.ones(mm)  # scale of the right-hand side rows (1/pivot, 1/gamma at the twist row)
-    S = np.zeros(4 * mm)  # packed per-row coefficients of the solve (_solve_coefficients)
+    # the solve: parallel cyclic reduction in vector registers up to PCR_MAX_ROWS unknowns (pcr.py),
+    # the twisted scalar solve beyond
+    use_pcr = 0 < m <= PCR_MAX_ROWS
+    n_regs = (m + 7) // 8 if use_pcr else 1
+    n_r = 8 * n_regs
+    rhs = np.zeros(max(mm, n_r))  # zero-padded to whole registers
+    xr = np.zeros(n_r)  # solution of the reduction (zero-padded)
+    r_al = np.zeros(PCR_MAX_LEVELS * n_r)  # per-level coefficients of the reduction
+    r_ga = np.zeros(PCR_MAX_LEVELS * n_r)
+    r_w = np.zeros(n_r)
+    r_work = np.zeros((6, mm))
+    n_lev = 0  # levels of the reduction
+    sc = np.ones(mm)  # scale of the right-hand side rows (twisted solve: 1/pivot, 1/gamma at the twist row)
+    S = np.zeros(4 * mm)  # packed per-row coefficients of the twisted solve (_solve_coefficients)
     k = m // 2  # twist row of the factorisation
     nb = m - 1 - k  # rows below it (k or k - 1)
     Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
@@ -562,7 +579,10 @@ def _run_one(
         gex[lnk] = omth[lnk] * g0[lnk]
     if m > 0:
         _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
-        _solve_coefficients(inv, f1, f2, k, m, sc, S)
+        if use_pcr:
+            n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
+        else:
+            _solve_coefficients(inv, f1, f2, k, m, sc, S)
 
     e_in = 0.0
     e_out = 0.0
@@ -635,7 +655,10 @@ def _run_one(
                 if n_drift > 0 and m > 0:
                     _set_factorised(g0, gs, theta, drift, lim, thg, tol)
                     _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
-                    _solve_coefficients(inv, f1, f2, k, m, sc, S)
+                    if use_pcr:
+                        n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
+                    else:
+                        _solve_coefficients(inv, f1, f2, k, m, sc, S)
             if fresh:
                 for lnk in range(n_links):
                     dp = Tnew[lnk] - Tnew[lnk + 1]
@@ -660,80 +683,86 @@ def _run_one(
                 rhs[m - 1] += bc_h[1] * (thi * ui[n + 1] + (1.0 - thi) * (ui[n] - Tn[n_nodes - 1])) * sc[m - 1]
             else:
                 rhs[m - 1] -= (thi * ui[n + 1] + (1.0 - thi) * ui[n]) * sc[m - 1]
-            # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
-            # chains (top and bottom half), interleaved, the running values in registers, each taking
-            # two rows per multiply-add by recursive doubling (pair products c1, c2, packed with f1, f2
-            # per row in S by _solve_coefficients): y_{t+1} = (r_{t+1} - f1_{t+1} r_t) + c1_{t+1} y_{t-1},
-            # the row between off the chain. Written out here (a call, or numba's inline="always",
-            # costs refcount operations and spills on the chain each step); needs FMA contraction.
-            # Every index is unsigned (uint64(...)), which spares numba's negative-index wraparound
-            # (a sign test and two integer instructions per access).
-            # Elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
-            # y_i = r_i - f1_i y_{i-1} (top), y_i = r_i - f1_i y_{i+1} (bottom), r = rhs / pivot
-            yt = rhs[0]
-            yb = rhs[m - 1]
-            Tu[0] = yt
-            Tu[m - 1] = yb
-            n_pair = max((nb - 1) // 2, 0)
-            for p in range(n_pair):
-                i0 = uint64(1 + 2 * p)  # top rows i0, i1 = i0 + 1
-                i1 = uint64(2 + 2 * p)
-                r0 = rhs[i0]
-                ytn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yt
-                Tu[i0] = r0 - S[uint64(4 * i0)] * yt
-                Tu[i1] = ytn
-                yt = ytn
-                i0 = uint64(m - 2 - 2 * p)  # bottom rows i0, i1 = i0 - 1
-                i1 = uint64(m - 3 - 2 * p)
-                r0 = rhs[i0]
-                ybn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yb
-                Tu[i0] = r0 - S[uint64(4 * i0)] * yb
-                Tu[i1] = ybn
-                yb = ybn
-            for t in range(1 + 2 * n_pair, k):  # rows left in the top half (at most 2)
-                i0 = uint64(t)
-                yt = rhs[i0] - S[uint64(4 * i0)] * yt
-                Tu[i0] = yt
-            for t in range(m - 2 - 2 * n_pair, k, -1):  # row left in the bottom half (at most 1)
-                i0 = uint64(t)
-                yb = rhs[i0] - S[uint64(4 * i0)] * yb
-                Tu[i0] = yb
-            # twist row (its right-hand side and couplings pre-scaled by 1/gamma), from the chains'
-            # last values still in registers
-            xk = rhs[k]
-            if k > 0:
-                xk -= S[4 * k + 1] * yt
-            if k < m - 1:
-                xk -= S[4 * k + 3] * yb
-            Tu[k] = xk
-            # substitution away from the twist: x_i = y_i - f2_i x_{i+1} (top), x_i = y_i - f2_i x_{i-1}
-            # (bottom), also two rows per multiply-add on the chains
-            xt = xk
-            xb = xk
-            n_pair = nb // 2
-            for p in range(n_pair):
-                i0 = uint64(k - 1 - 2 * p)  # top rows i0, i1 = i0 - 1
-                i1 = uint64(k - 2 - 2 * p)
-                y0 = Tu[i0]
-                xtn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xt
-                Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xt
-                Tu[i1] = xtn
-                xt = xtn
-                i0 = uint64(k + 1 + 2 * p)  # bottom rows i0, i1 = i0 + 1
-                i1 = uint64(k + 2 + 2 * p)
-                y0 = Tu[i0]
-                xbn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xb
-                Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xb
-                Tu[i1] = xbn
-                xb = xbn
-            for t in range(k - 1 - 2 * n_pair, -1, -1):  # rows left in the top half (at most 2)
-                i0 = uint64(t)
-                xt = Tu[i0] - S[uint64(4 * i0 + 2)] * xt
-                Tu[i0] = xt
-            for t in range(k + 1 + 2 * n_pair, m):  # row left in the bottom half (at most 1)
-                i0 = uint64(t)
-                xb = Tu[i0] - S[uint64(4 * i0 + 2)] * xb
-                Tu[i0] = xb
+            if use_pcr:
+                # solve A0 x = rhs by parallel cyclic reduction in vector registers (pcr.py)
+                pcr_solve(n_regs, rhs, r_al, r_ga, r_w, xr, n_lev)
+                for i in range(m):
+                    Tu[i] = xr[i]
+            else:
+                # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
+                # chains (top and bottom half), interleaved, the running values in registers, each taking
+                # two rows per multiply-add by recursive doubling (pair products c1, c2, packed with f1, f2
+                # per row in S by _solve_coefficients): y_{t+1} = (r_{t+1} - f1_{t+1} r_t) + c1_{t+1} y_{t-1},
+                # the row between off the chain. Written out here (a call, or numba's inline="always",
+                # costs refcount operations and spills on the chain each step); needs FMA contraction.
+                # Every index is unsigned (uint64(...)), which spares numba's negative-index wraparound
+                # (a sign test and two integer instructions per access).
+                # Elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
+                # y_i = r_i - f1_i y_{i-1} (top), y_i = r_i - f1_i y_{i+1} (bottom), r = rhs / pivot
+                yt = rhs[0]
+                yb = rhs[m - 1]
+                Tu[0] = yt
+                Tu[m - 1] = yb
+                n_pair = max((nb - 1) // 2, 0)
+                for p in range(n_pair):
+                    i0 = uint64(1 + 2 * p)  # top rows i0, i1 = i0 + 1
+                    i1 = uint64(2 + 2 * p)
+                    r0 = rhs[i0]
+                    ytn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yt
+                    Tu[i0] = r0 - S[uint64(4 * i0)] * yt
+                    Tu[i1] = ytn
+                    yt = ytn
+                    i0 = uint64(m - 2 - 2 * p)  # bottom rows i0, i1 = i0 - 1
+                    i1 = uint64(m - 3 - 2 * p)
+                    r0 = rhs[i0]
+                    ybn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yb
+                    Tu[i0] = r0 - S[uint64(4 * i0)] * yb
+                    Tu[i1] = ybn
+                    yb = ybn
+                for t in range(1 + 2 * n_pair, k):  # rows left in the top half (at most 2)
+                    i0 = uint64(t)
+                    yt = rhs[i0] - S[uint64(4 * i0)] * yt
+                    Tu[i0] = yt
+                for t in range(m - 2 - 2 * n_pair, k, -1):  # row left in the bottom half (at most 1)
+                    i0 = uint64(t)
+                    yb = rhs[i0] - S[uint64(4 * i0)] * yb
+                    Tu[i0] = yb
+                # twist row (its right-hand side and couplings pre-scaled by 1/gamma), from the chains'
+                # last values still in registers
+                xk = rhs[k]
+                if k > 0:
+                    xk -= S[4 * k + 1] * yt
+                if k < m - 1:
+                    xk -= S[4 * k + 3] * yb
+                Tu[k] = xk
+                # substitution away from the twist: x_i = y_i - f2_i x_{i+1} (top), x_i = y_i - f2_i x_{i-1}
+                # (bottom), also two rows per multiply-add on the chains
+                xt = xk
+                xb = xk
+                n_pair = nb // 2
+                for p in range(n_pair):
+                    i0 = uint64(k - 1 - 2 * p)  # top rows i0, i1 = i0 - 1
+                    i1 = uint64(k - 2 - 2 * p)
+                    y0 = Tu[i0]
+                    xtn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xt
+                    Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xt
+                    Tu[i1] = xtn
+                    xt = xtn
+                    i0 = uint64(k + 1 + 2 * p)  # bottom rows i0, i1 = i0 + 1
+                    i1 = uint64(k + 2 + 2 * p)
+                    y0 = Tu[i0]
+                    xbn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xb
+                    Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xb
+                    Tu[i1] = xbn
+                    xb = xbn
+                for t in range(k - 1 - 2 * n_pair, -1, -1):  # rows left in the top half (at most 2)
+                    i0 = uint64(t)
+                    xt = Tu[i0] - S[uint64(4 * i0 + 2)] * xt
+                    Tu[i0] = xt
+                for t in range(k + 1 + 2 * n_pair, m):  # row left in the bottom half (at most 1)
+                    i0 = uint64(t)
+                    xb = Tu[i0] - S[uint64(4 * i0 + 2)] * xb
+                    Tu[i0] = xb
         # step-average face fluxes F^{n+1/2} (the scheme's own link fluxes: energy is conserved exactly)
         if dir_e:
             fe = Epad[1] + thg[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0])
