@@ -129,9 +129,11 @@ def test_reduction_on_stiff_and_massless_walls(name, dt):
     work = [np.zeros(m) for _ in range(3)]
     kernels._factor_lean(cap[0], g[0], theta[0], prep.bc_type, prep.bc_h, bc_theta[0], dt, 1, m, diag, off, *work)
     rng = np.random.default_rng(1)
-    for _ in range(5):
+    err, err_lu = 0.0, 0.0  # worst over 50 right-hand sides
+    for _ in range(50):
         r = _dense(diag, off) @ rng.normal(15.0, 10.0, m)
         exact = _thomas(diag, off, r, np.longdouble)
-        err = np.max(np.abs(solve_reference(diag, off, r) - exact))
-        err_lu = np.max(np.abs(_thomas(diag, off, r, np.float64) - exact))
-        assert err <= 4 * err_lu + 1e-13 * np.max(np.abs(exact)), (err, err_lu)
+        err = max(err, np.max(np.abs(solve_reference(diag, off, r) - exact)))
+        err_lu = max(err_lu, np.max(np.abs(_thomas(diag, off, r, np.float64) - exact)))
+    # observed: 0.6-2x LU's worst case (1e-14 K .. 1.2e-8 K at condition numbers 3e1 .. 1.4e7)
+    assert err <= 3 * err_lu + 1e-13 * 40.0, (err, err_lu)

@@ -48,7 +48,7 @@ _I64 = ir.IntType(64)
 _MASK = ir.VectorType(ir.IntType(32), 8)
 
 
-def _levels_for(n_regs: int) -> int:
+def levels_for(n_regs: int) -> int:
     """Levels after which a system of 8 n_regs rows is exactly diagonal (stride >= rows)."""
     levels, s = 0, 1
     while s < 8 * n_regs:
@@ -57,66 +57,104 @@ def _levels_for(n_regs: int) -> int:
     return levels
 
 
+class VectorIR:
+    """Helpers that emit 8-wide float64 vector IR with an llvmlite builder."""
+
+    FLAGS = ("contract",)
+
+    def __init__(self, builder):
+        self.b = builder
+        self.zero = ir.Constant(_V8, [0.0] * 8)
+
+    def ptr(self, p, off):
+        a = self.b.gep(p, [ir.Constant(_I64, off)], inbounds=True)
+        return self.b.bitcast(a, _V8.as_pointer())
+
+    def load(self, p, off):
+        """Elements off .. off + 7 of the float64 data pointer p."""
+        return self.b.load(self.ptr(p, off), align=8)
+
+    def store(self, v, p, off):
+        self.b.store(v, self.ptr(p, off), align=8)
+
+    def next_(self, regs, j, s):
+        """Lane i: element 8 j + i + s of the sequence held in regs (zero beyond its end)."""
+        if s % 8 == 0:
+            q = j + s // 8
+            return regs[q] if q < len(regs) else self.zero
+        cur = regs[j]
+        nxt = regs[j + 1] if j + 1 < len(regs) else self.zero
+        return self.b.shuffle_vector(cur, nxt, ir.Constant(_MASK, [s + i for i in range(8)]))
+
+    def prev_(self, regs, j, s):
+        """Lane i: element 8 j + i - s of the sequence held in regs (zero before its start)."""
+        if s % 8 == 0:
+            q = j - s // 8
+            return regs[q] if q >= 0 else self.zero
+        prv = regs[j - 1] if j > 0 else self.zero
+        return self.b.shuffle_vector(prv, regs[j], ir.Constant(_MASK, [8 - s + i for i in range(8)]))
+
+    def sub(self, x, y):
+        return self.b.fsub(x, y, flags=self.FLAGS)
+
+    def mul(self, x, y):
+        return self.b.fmul(x, y, flags=self.FLAGS)
+
+    def reduce(self, regs, pal, pga, levels, max_levels):
+        """The levels of the reduction (see the module docstring) applied to the right-hand side held
+        in regs, with the per-level coefficients at the data pointers pal, pga (level-major, 8 len(regs)
+        per level); ``levels`` (an i64 value) of the max_levels levels run. Returns the registers."""
+        b = self.b
+        n_regs = len(regs)
+        R = list(regs)
+        s = 1
+        for lev in range(max_levels):
+            entry = b.block
+            do_level = b.append_basic_block(f"pcr_level{lev}")
+            after = b.append_basic_block(f"pcr_after{lev}")
+            b.cbranch(b.icmp_signed(">", levels, ir.Constant(levels.type, lev)), do_level, after)
+            b.position_at_end(do_level)
+            new = []
+            for j in range(n_regs):
+                base = lev * 8 * n_regs + 8 * j
+                t = self.sub(R[j], self.mul(self.load(pal, base), self.prev_(R, j, s)))
+                new.append(self.sub(t, self.mul(self.load(pga, base), self.next_(R, j, s))))
+            done = b.block
+            b.branch(after)
+            b.position_at_end(after)
+            merged = []
+            for j in range(n_regs):
+                phi = b.phi(_V8)
+                phi.add_incoming(new[j], done)
+                phi.add_incoming(R[j], entry)
+                merged.append(phi)
+            R = merged
+            s *= 2
+        return R
+
+
+def data_pointers(context, builder, signature, args, n):
+    """Data pointers of the first n (array) arguments of an intrinsic."""
+    arrays = zip(signature.args[:n], args[:n], strict=True)
+    return [context.make_array(ty)(context, builder, val).data for ty, val in arrays]
+
+
 def _make_solver(n_regs: int):
     """numba intrinsic ``solve(r, al, ga, w, x, n_levels)`` for 8 n_regs rows (zero-padded beyond the
     system's m rows): x = w * (the right-hand side r after n_levels levels with the per-level
     coefficients al, ga, level-major with 8 n_regs per level). Arrays: contiguous float64."""
-    max_levels = _levels_for(n_regs)
+    max_levels = levels_for(n_regs)
 
     @intrinsic
     def solve(typingctx, r, al, ga, w, x, n_levels):
         sig = types.void(r, al, ga, w, x, n_levels)
 
         def codegen(context, builder, signature, args):
-            arrays = zip(signature.args[:5], args[:5], strict=True)
-            pr, pal, pga, pw, px = [context.make_array(ty)(context, builder, val).data for ty, val in arrays]
-            levels = args[5]
-
-            def vptr(p, off):
-                a = builder.gep(p, [ir.Constant(_I64, off)], inbounds=True)
-                return builder.bitcast(a, _V8.as_pointer())
-
-            def vload(p, off):
-                return builder.load(vptr(p, off), align=8)
-
-            zero = ir.Constant(_V8, [0.0] * 8)
-            R = [vload(pr, 8 * j) for j in range(n_regs)]
-            s = 1
-            for lev in range(max_levels):
-                entry = builder.block
-                do_level = builder.append_basic_block(f"pcr_level{lev}")
-                after = builder.append_basic_block(f"pcr_after{lev}")
-                go = builder.icmp_signed(">", levels, ir.Constant(levels.type, lev))
-                builder.cbranch(go, do_level, after)
-                builder.position_at_end(do_level)
-                new = []
-                for j in range(n_regs):
-                    if s < 8:  # lane rotations of the adjacent registers
-                        left = R[j - 1] if j > 0 else zero
-                        right = R[j + 1] if j + 1 < n_regs else zero
-                        sl = builder.shuffle_vector(left, R[j], ir.Constant(_MASK, [8 - s + i for i in range(8)]))
-                        sr = builder.shuffle_vector(R[j], right, ir.Constant(_MASK, [s + i for i in range(8)]))
-                    else:  # whole registers
-                        q = s // 8
-                        sl = R[j - q] if j - q >= 0 else zero
-                        sr = R[j + q] if j + q < n_regs else zero
-                    base = lev * 8 * n_regs + 8 * j
-                    fl = ("contract",)
-                    t = builder.fsub(R[j], builder.fmul(vload(pal, base), sl, flags=fl), flags=fl)
-                    new.append(builder.fsub(t, builder.fmul(vload(pga, base), sr, flags=fl), flags=fl))
-                done = builder.block
-                builder.branch(after)
-                builder.position_at_end(after)
-                merged = []
-                for j in range(n_regs):
-                    phi = builder.phi(_V8)
-                    phi.add_incoming(new[j], done)
-                    phi.add_incoming(R[j], entry)
-                    merged.append(phi)
-                R = merged
-                s *= 2
+            pr, pal, pga, pw, px = data_pointers(context, builder, signature, args, 5)
+            v = VectorIR(builder)
+            R = v.reduce([v.load(pr, 8 * j) for j in range(n_regs)], pal, pga, args[5], max_levels)
             for j in range(n_regs):
-                builder.store(builder.fmul(vload(pw, 8 * j), R[j]), vptr(px, 8 * j), align=8)
+                v.store(v.mul(v.load(pw, 8 * j), R[j]), px, 8 * j)
             return context.get_dummy_value()
 
         return sig, codegen
