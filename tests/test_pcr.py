@@ -52,7 +52,7 @@ def _levels(diag, off):
     n_regs = (m + 7) // 8
     n = 8 * n_regs
     return pcr_coefficients(
-        diag, off, m, n_regs, np.zeros(PCR_MAX_LEVELS * n), np.zeros(PCR_MAX_LEVELS * n), np.zeros(n), np.zeros((6, m))
+        diag, off, m, n_regs, np.zeros(PCR_MAX_LEVELS * n), np.zeros(PCR_MAX_LEVELS * n), np.zeros(n), np.zeros((7, m))
     )
 
 

@@ -495,7 +495,7 @@ def _run_one(
     r_al = np.zeros(PCR_MAX_LEVELS * n_r)  # per-level coefficients of the reduction
     r_ga = np.zeros(PCR_MAX_LEVELS * n_r)
     r_w = np.zeros(n_r)
-    r_work = np.zeros((6, mm))
+    r_work = np.zeros((7, mm))
     n_lev = 0  # levels of the reduction
     sc = np.ones(mm)  # scale of the right-hand side rows (twisted solve: 1/pivot, 1/gamma at the twist row)
     S = np.zeros(4 * mm)  # packed per-row coefficients of the twisted solve (_solve_coefficients)

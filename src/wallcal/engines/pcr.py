@@ -193,7 +193,10 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     """Coefficients of the reduction of the symmetric tridiagonal matrix with diagonal ``diag[:m]``
     and off-diagonal ``off[i]`` between rows i and i + 1: per level (level-major, 8 n_regs per
     level) ``al = alpha``, ``ga = gamma``, and ``w = 1 / b`` of the final diagonal system, all zero
-    beyond row m. Returns the number of levels. work: (6, >= m) work array."""
+    beyond row m. Returns the number of levels. work: (7, >= m) work array.
+
+    One division per row and level (the reciprocals of the diagonal), none in the stopping test: a
+    lambda(T) run refactorises a few hundred times."""
     n = 8 * n_regs
     a = work[0]
     b = work[1]
@@ -201,6 +204,7 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     na = work[3]
     nb = work[4]
     nc = work[5]
+    rb = work[6]
     for i in range(m):
         a[i] = off[i - 1] if i > 0 else 0.0
         b[i] = diag[i]
@@ -213,25 +217,29 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     levels = 0
     s = 1
     while True:
-        worst = 0.0
         for i in range(m):
-            worst = max(worst, (abs(a[i]) + abs(c[i])) / abs(b[i]))
-        if worst < PCR_TOL or s >= m:
+            rb[i] = 1.0 / b[i]
+        n_coupled = 0  # rows whose couplings are not yet negligible
+        for i in range(m):
+            n_coupled += 1 if abs(a[i]) + abs(c[i]) >= PCR_TOL * abs(b[i]) else 0
+        if n_coupled == 0 or s >= m:
             break
         base = levels * n
         for i in range(m):
-            alpha = a[i] / b[i - s] if i >= s else 0.0
-            gamma = c[i] / b[i + s] if i + s < m else 0.0
             bi = b[i]
             if i >= s:
+                alpha = a[i] * rb[i - s]
                 bi -= alpha * c[i - s]
                 na[i] = -alpha * a[i - s]
             else:
+                alpha = 0.0
                 na[i] = 0.0
             if i + s < m:
+                gamma = c[i] * rb[i + s]
                 bi -= gamma * a[i + s]
                 nc[i] = -gamma * c[i + s]
             else:
+                gamma = 0.0
                 nc[i] = 0.0
             nb[i] = bi
             al[base + i] = alpha
@@ -243,7 +251,7 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
         levels += 1
         s *= 2
     for i in range(m):
-        w[i] = 1.0 / b[i]
+        w[i] = rb[i]
     return levels
 
 
@@ -255,7 +263,7 @@ def solve_reference(diag: np.ndarray, off: np.ndarray, r: np.ndarray) -> np.ndar
     al = np.zeros(PCR_MAX_LEVELS * n)
     ga = np.zeros(PCR_MAX_LEVELS * n)
     w = np.zeros(n)
-    levels = pcr_coefficients(diag, off, m, n_regs, al, ga, w, np.zeros((6, m)))
+    levels = pcr_coefficients(diag, off, m, n_regs, al, ga, w, np.zeros((7, m)))
     rp = np.zeros(n)
     rp[:m] = r
     x = np.zeros(n)
