@@ -7,7 +7,7 @@ import pytest
 
 from conftest import make_input
 from wallcal.engines.fd import FDEngine
-from wallcal.engines.pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, pcr_coefficients, solve_reference
+from wallcal.engines.pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, pcr_coefficients, pcr_work, solve_reference
 from wallcal.wall import Layer, Probe, Wall
 
 
@@ -52,7 +52,7 @@ def _levels(diag, off):
     n_regs = (m + 7) // 8
     n = 8 * n_regs
     return pcr_coefficients(
-        diag, off, m, n_regs, np.zeros(PCR_MAX_LEVELS * n), np.zeros(PCR_MAX_LEVELS * n), np.zeros(n), np.zeros((7, m))
+        diag, off, m, n_regs, np.zeros(PCR_MAX_LEVELS * n), np.zeros(PCR_MAX_LEVELS * n), np.zeros(n), pcr_work(m)
     )
 
 
@@ -126,8 +126,8 @@ def test_reduction_on_stiff_and_massless_walls(name, dt):
     m = cap.shape[1] - 2  # both faces imposed
     assert m <= PCR_MAX_ROWS
     diag, off = np.zeros(m), np.zeros(m)
-    work = [np.zeros(m) for _ in range(3)]
-    kernels._factor_lean(cap[0], g[0], theta[0], prep.bc_type, prep.bc_h, bc_theta[0], dt, 1, m, diag, off, *work)
+    lu = [np.zeros(m) for _ in range(3)]  # not formed (lu=False): the matrix only
+    kernels._factor_lean(cap[0], g[0], theta[0], prep.bc_type, prep.bc_h, bc_theta[0], dt, 1, m, diag, off, *lu, False)
     rng = np.random.default_rng(1)
     err, err_lu = 0.0, 0.0  # worst over 50 right-hand sides
     for _ in range(50):

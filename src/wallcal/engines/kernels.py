@@ -56,7 +56,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange, uint64
 
-from .pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, pcr_coefficients, pcr_solve
+from .pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, PCR_WORK_PAD, pcr_coefficients, pcr_solve
 
 DIRICHLET = 0
 ROBIN = 1
@@ -252,8 +252,9 @@ def _face_flux(F, j, n_steps, u, is_flux_bc):
 
 
 @njit(cache=True)
-def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, f1, f2):
-    """Twisted ("burn at both ends") LU of A0 = Cap/dt + K_theta(g0) over the unknowns.
+def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, f1, f2, lu):
+    """Twisted ("burn at both ends") LU of A0 = Cap/dt + K_theta(g0) over the unknowns (only the
+    matrix, in a and b, when ``lu`` is false: the solve by reduction needs no LU).
 
     Rows above the twist k = m // 2 are eliminated downwards (pivots p), rows below it upwards
     (pivots q), so that a solve runs two independent dependency chains of length m/2 instead of
@@ -277,6 +278,8 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, 
         a[0] += bc_theta[0] * bc_h[0]
     if bc_type[1] == 1:
         a[m - 1] += bc_theta[1] * bc_h[1]
+    if not lu:
+        return
     for i in range(k):  # downwards
         piv = a[i]
         if i > 0:
@@ -495,7 +498,7 @@ def _run_one(
     r_al = np.zeros(PCR_MAX_LEVELS * n_r)  # per-level coefficients of the reduction
     r_ga = np.zeros(PCR_MAX_LEVELS * n_r)
     r_w = np.zeros(n_r)
-    r_work = np.zeros((7, mm))
+    r_work = np.zeros((7, mm + 2 * PCR_WORK_PAD))  # pcr_work(m), allocated here
     n_lev = 0  # levels of the reduction
     sc = np.ones(mm)  # scale of the right-hand side rows (twisted solve: 1/pivot, 1/gamma at the twist row)
     S = np.zeros(4 * mm)  # packed per-row coefficients of the twisted solve (_solve_coefficients)
@@ -578,7 +581,7 @@ def _run_one(
     for lnk in range(n_links):
         gex[lnk] = omth[lnk] * g0[lnk]
     if m > 0:
-        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
+        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not use_pcr)
         if use_pcr:
             n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
         else:
@@ -654,7 +657,7 @@ def _run_one(
                         gs[lnk] = Gm[lnk] * _sinhc(0.25 * d * d)
                 if n_drift > 0 and m > 0:
                     _set_factorised(g0, gs, theta, drift, lim, thg, tol)
-                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
+                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not use_pcr)
                     if use_pcr:
                         n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
                     else:

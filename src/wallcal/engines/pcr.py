@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import njit, types, uint64
 from numba.extending import intrinsic
 
 PCR_MAX_REGS = 8  # vector registers of 8 rows
@@ -188,16 +188,28 @@ def pcr_solve(n_regs, r, al, ga, w, x, n_levels):
         _s8(r, al, ga, w, x, n_levels)
 
 
+PCR_WORK_PAD = 8 * PCR_MAX_REGS  # zero margins of the work rows (>= the largest stride)
+
+
+def pcr_work(m: int) -> np.ndarray:
+    """Work array of :func:`pcr_coefficients` for m rows."""
+    return np.zeros((7, m + 2 * PCR_WORK_PAD))
+
+
 @njit(cache=True)
 def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     """Coefficients of the reduction of the symmetric tridiagonal matrix with diagonal ``diag[:m]``
     and off-diagonal ``off[i]`` between rows i and i + 1: per level (level-major, 8 n_regs per
     level) ``al = alpha``, ``ga = gamma``, and ``w = 1 / b`` of the final diagonal system, all zero
-    beyond row m. Returns the number of levels. work: (7, >= m) work array.
+    beyond row m. Returns the number of levels. work: :func:`pcr_work` (m rows).
 
-    One division per row and level (the reciprocals of the diagonal), none in the stopping test: a
-    lambda(T) run refactorises a few hundred times."""
+    A lambda(T) run refactorises a few hundred times, so this is written for speed: the rows live
+    between zero margins (unit diagonal) wider than any stride, so that every level is one
+    branch-free, vectorised pass (the couplings of row i to rows beyond the ends are zero by
+    construction), with one division per row and level (the reciprocals of the diagonal) and none
+    in the stopping test."""
     n = 8 * n_regs
+    P = PCR_WORK_PAD
     a = work[0]
     b = work[1]
     c = work[2]
@@ -205,10 +217,16 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     nb = work[4]
     nc = work[5]
     rb = work[6]
+    for i in range(work.shape[1]):
+        a[i] = 0.0
+        b[i] = 1.0
+        c[i] = 0.0
+        rb[i] = 1.0
     for i in range(m):
-        a[i] = off[i - 1] if i > 0 else 0.0
-        b[i] = diag[i]
-        c[i] = off[i] if i < m - 1 else 0.0
+        b[P + i] = diag[i]
+    for i in range(m - 1):
+        c[P + i] = off[i]
+        a[P + i + 1] = off[i]
     for i in range(al.shape[0]):
         al[i] = 0.0
         ga[i] = 0.0
@@ -218,40 +236,34 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     s = 1
     while True:
         for i in range(m):
-            rb[i] = 1.0 / b[i]
+            rb[uint64(P + i)] = 1.0 / b[uint64(P + i)]
         n_coupled = 0  # rows whose couplings are not yet negligible
         for i in range(m):
-            n_coupled += 1 if abs(a[i]) + abs(c[i]) >= PCR_TOL * abs(b[i]) else 0
+            k = uint64(P + i)
+            n_coupled += 1 if abs(a[k]) + abs(c[k]) >= PCR_TOL * abs(b[k]) else 0
         if n_coupled == 0 or s >= m:
             break
         base = levels * n
         for i in range(m):
-            bi = b[i]
-            if i >= s:
-                alpha = a[i] * rb[i - s]
-                bi -= alpha * c[i - s]
-                na[i] = -alpha * a[i - s]
-            else:
-                alpha = 0.0
-                na[i] = 0.0
-            if i + s < m:
-                gamma = c[i] * rb[i + s]
-                bi -= gamma * a[i + s]
-                nc[i] = -gamma * c[i + s]
-            else:
-                gamma = 0.0
-                nc[i] = 0.0
-            nb[i] = bi
-            al[base + i] = alpha
-            ga[base + i] = gamma
+            k = uint64(P + i)
+            lo = uint64(P + i - s)
+            hi = uint64(P + i + s)
+            alpha = a[k] * rb[lo]
+            gamma = c[k] * rb[hi]
+            nb[k] = b[k] - alpha * c[lo] - gamma * a[hi]
+            na[k] = -alpha * a[lo]
+            nc[k] = -gamma * c[hi]
+            al[uint64(base + i)] = alpha
+            ga[uint64(base + i)] = gamma
         for i in range(m):
-            a[i] = na[i]
-            b[i] = nb[i]
-            c[i] = nc[i]
+            k = uint64(P + i)
+            a[k] = na[k]
+            b[k] = nb[k]
+            c[k] = nc[k]
         levels += 1
         s *= 2
     for i in range(m):
-        w[i] = rb[i]
+        w[i] = rb[uint64(P + i)]
     return levels
 
 
@@ -263,7 +275,7 @@ def solve_reference(diag: np.ndarray, off: np.ndarray, r: np.ndarray) -> np.ndar
     al = np.zeros(PCR_MAX_LEVELS * n)
     ga = np.zeros(PCR_MAX_LEVELS * n)
     w = np.zeros(n)
-    levels = pcr_coefficients(diag, off, m, n_regs, al, ga, w, np.zeros((7, m)))
+    levels = pcr_coefficients(diag, off, m, n_regs, al, ga, w, pcr_work(m))
     rp = np.zeros(n)
     rp[:m] = r
     x = np.zeros(n)
