@@ -56,7 +56,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange, uint64
 
-from .pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, PCR_WORK_PAD, pcr_coefficients, pcr_solve
+from .pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, pcr_coefficients, pcr_solve, pcr_work
 
 DIRICHLET = 0
 ROBIN = 1
@@ -498,7 +498,7 @@ def _run_one(
     r_al = np.zeros(PCR_MAX_LEVELS * n_r)  # per-level coefficients of the reduction
     r_ga = np.zeros(PCR_MAX_LEVELS * n_r)
     r_w = np.zeros(n_r)
-    r_work = np.zeros((7, mm + 2 * PCR_WORK_PAD))  # pcr_work(m), allocated here
+    r_work = pcr_work(mm)
     n_lev = 0  # levels of the reduction
     sc = np.ones(mm)  # scale of the right-hand side rows (twisted solve: 1/pivot, 1/gamma at the twist row)
     S = np.zeros(4 * mm)  # packed per-row coefficients of the twisted solve (_solve_coefficients)

@@ -191,17 +191,24 @@ def pcr_solve(n_regs, r, al, ga, w, x, n_levels):
 PCR_WORK_PAD = 8 * PCR_MAX_REGS  # zero margins of the work rows (>= the largest stride)
 
 
-def pcr_work(m: int) -> np.ndarray:
-    """Work array of :func:`pcr_coefficients` for m rows."""
-    return np.zeros((7, m + 2 * PCR_WORK_PAD))
+@njit(cache=True)
+def pcr_work(m):
+    """Work array of :func:`pcr_coefficients` for m rows: zero margins, unit diagonal in them."""
+    work = np.zeros((7, m + 2 * PCR_WORK_PAD))
+    for i in range(work.shape[1]):
+        work[1, i] = 1.0
+        work[6, i] = 1.0
+    return work
 
 
 @njit(cache=True)
 def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     """Coefficients of the reduction of the symmetric tridiagonal matrix with diagonal ``diag[:m]``
     and off-diagonal ``off[i]`` between rows i and i + 1: per level (level-major, 8 n_regs per
-    level) ``al = alpha``, ``ga = gamma``, and ``w = 1 / b`` of the final diagonal system, all zero
-    beyond row m. Returns the number of levels. work: :func:`pcr_work` (m rows).
+    level) ``al = alpha``, ``ga = gamma``, and ``w = 1 / b`` of the final diagonal system. Returns the
+    number of levels. al, ga and w must be zero beyond row m (as allocated: rows beyond m are never
+    written; levels beyond the returned number are left as they were). work: :func:`pcr_work` for
+    m rows (its margins are never written).
 
     A lambda(T) run refactorises a few hundred times, so this is written for speed: the rows live
     between zero margins (unit diagonal) wider than any stride, so that every level is one
@@ -217,21 +224,13 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     nb = work[4]
     nc = work[5]
     rb = work[6]
-    for i in range(work.shape[1]):
-        a[i] = 0.0
-        b[i] = 1.0
-        c[i] = 0.0
-        rb[i] = 1.0
+    a[P] = 0.0
+    c[P + m - 1] = 0.0
     for i in range(m):
         b[P + i] = diag[i]
     for i in range(m - 1):
         c[P + i] = off[i]
         a[P + i + 1] = off[i]
-    for i in range(al.shape[0]):
-        al[i] = 0.0
-        ga[i] = 0.0
-    for i in range(w.shape[0]):
-        w[i] = 0.0
     levels = 0
     s = 1
     while True:
@@ -244,22 +243,24 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
         if n_coupled == 0 or s >= m:
             break
         base = levels * n
+        # one pass per array written (few arrays per pass: LLVM vectorises them), then the new
+        # couplings and diagonal take the old ones' places
         for i in range(m):
             k = uint64(P + i)
-            lo = uint64(P + i - s)
-            hi = uint64(P + i + s)
-            alpha = a[k] * rb[lo]
-            gamma = c[k] * rb[hi]
-            nb[k] = b[k] - alpha * c[lo] - gamma * a[hi]
-            na[k] = -alpha * a[lo]
-            nc[k] = -gamma * c[hi]
-            al[uint64(base + i)] = alpha
-            ga[uint64(base + i)] = gamma
+            al[uint64(base + i)] = a[k] * rb[uint64(P + i - s)]
         for i in range(m):
             k = uint64(P + i)
-            a[k] = na[k]
-            b[k] = nb[k]
-            c[k] = nc[k]
+            ga[uint64(base + i)] = c[k] * rb[uint64(P + i + s)]
+        for i in range(m):
+            k = uint64(P + i)
+            nb[k] = b[k] - al[uint64(base + i)] * c[uint64(P + i - s)] - ga[uint64(base + i)] * a[uint64(P + i + s)]
+        for i in range(m):
+            na[uint64(P + i)] = -al[uint64(base + i)] * a[uint64(P + i - s)]
+        for i in range(m):
+            nc[uint64(P + i)] = -ga[uint64(base + i)] * c[uint64(P + i + s)]
+        a, na = na, a
+        b, nb = nb, b
+        c, nc = nc, c
         levels += 1
         s *= 2
     for i in range(m):
