@@ -459,14 +459,15 @@ def _run_one(
       drifts from ``g0`` (see :func:`_set_factorised`).
 
     Layout of a step (see the module docstring for why): lambda(T) only, one vectorised pass over
-    the links forming ``g*`` and the two counts that trigger the rare branch (exact factors / closed
-    form / table laws, refactorisation) and, when every link has the same theta, the explicit fluxes
+    the links updating the link factors ``Gm``, forming ``g*`` and the two counts that trigger the
+    rare branch (exact factors / closed form / table laws, refactorisation) and, when every link has
+    the same theta, the explicit fluxes
     ``E`` without storing ``g*`` (else ``g*`` is stored and ``E`` formed by a second pass, as after a
     rare branch); the right-hand side, scaled for the solve; the solve, written out (two chains, two
     rows per multiply-add); the scalar face fluxes, probes (only when an output needs them) and
-    outputs; one pass over the links that shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the
-    next step: mid-step temperature, the predictor written into ``Tnew``, and the link factors
-    ``Gm`` updated for the change of the mean mid-step temperature.
+    outputs; one pass over the nodes that shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the
+    next step: mid-step temperature, its change (from which the next step's first pass updates the
+    link factors ``Gm``) and the predictor written into ``Tnew``.
     """
     n_nodes = cap.shape[0]
     n_links = g_ref.shape[0]
@@ -505,15 +506,15 @@ def _run_one(
     k = m // 2  # twist row of the factorisation
     nb = m - 1 - k  # rows below it (k or k - 1)
     Epad = np.zeros(n_links + 2)  # Epad[l + 1] = E_l, zero beyond the ends (branch-free right-hand side)
-    # the last pass of a lambda(T) step runs over n_pad > n_links links, a multiple of 8 (the vector
+    # the last pass of a lambda(T) step runs over n_pad >= n_nodes nodes, a multiple of 8 (the vector
     # width with 512-bit vectors, two vectors with 256-bit ones), on buffers padded with zeros: no
-    # scalar or narrower remainder loop, no separate last node (multiples of 4 measured ~5 % slower)
+    # scalar or narrower remainder loop (multiples of 4 measured ~5 % slower)
     n_pad = (n_links // 8 + 1) * 8
     TnB = np.zeros(n_pad + 1)
     TnewB = np.zeros(n_pad + 1)
     TmidB = np.zeros(n_pad + 1)
+    DB = np.zeros(n_pad + 1)  # change of the mid-step temperature over the last step (lambda(T))
     GmB = np.zeros(n_pad)
-    coefB = np.zeros(n_pad)
     Tn = TnB[:n_nodes]  # T^n
     Tnew = TnewB[:n_nodes]  # T^{n+1}; before the solve: the known faces and the predictor T~
     Tu = Tnew[j0 : j0 + m]  # its unknowns (view)
@@ -521,7 +522,6 @@ def _run_one(
     Gm = GmB[:n_links]  # link factors g_ref exp(f (T_m - T_ref)) at the mean mid-step temperature
     for lnk in range(n_links):
         Gm[lnk] = g_ref[lnk]
-        coefB[lnk] = coef[lnk]
     has_table = False
     th0 = theta[0] if n_links > 0 else 0.5
     om0 = 1.0 - th0
@@ -612,21 +612,26 @@ def _run_one(
             # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
             fresh = n == 0  # E still to be formed from the array gs (first step: g* = g0 from the start)
             if n > 0:
-                # lambda(T): the link factors Gm were brought to this step's mid-step temperature by
-                # the previous step's last pass (counting the updates beyond the polynomial's range
-                # in n_big). One pass over the links (vectorised: no branches, integer counts) forms
-                # the Kirchhoff-mean conductances g* = Gm sinh(x)/x (as _nonlinear_conductances),
-                # counts the links beyond the polynomial's range and those whose g* drifted more than
-                # tol from g0, and, when every link has the same theta (reading few arrays keeps the
-                # pass vectorised), the explicit fluxes E too, without storing g*; the rare branches
-                # (exact factors, table laws, refactorisation) store g* and form E afterwards.
+                # lambda(T): one pass over the links (vectorised: no branches, integer counts) brings
+                # the link factors Gm to this step's mid-step temperature, Gm *= exp(f dT_m) (a
+                # polynomial; dT_m: the change of the link's mean mid-step temperature, from the
+                # previous step's last pass), forms the Kirchhoff-mean conductances g* = Gm sinh(x)/x
+                # (as _nonlinear_conductances), counts the factor updates and the links beyond the
+                # polynomials' ranges (n_big) and those whose g* drifted more than tol from g0, and,
+                # when every link has the same theta (reading few arrays keeps the pass vectorised),
+                # the explicit fluxes E too, without storing g*; the rare branches (exact factors,
+                # table laws, refactorisation) store g* and form E afterwards.
                 n_drift = 0
                 if uniform_theta:
                     for lnk in range(n_links):
-                        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+                        cf = coef[lnk]
+                        x = cf * (0.5 * (DB[lnk] + DB[lnk + 1]))
+                        gmk = Gm[lnk] * _exp_step(x)
+                        Gm[lnk] = gmk
+                        d = cf * (Tmid[lnk] - Tmid[lnk + 1])
                         u = 0.25 * d * d
-                        n_big += 1 if u > SINHC_U_MAX else 0
-                        gk = Gm[lnk] * _sinhc(u)
+                        n_big += 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
+                        gk = gmk * _sinhc(u)
                         g0k = g0[lnk]
                         n_drift += 1 if abs(gk - g0k) > tol[lnk] else 0
                         dp = Tnew[lnk] - Tnew[lnk + 1]
@@ -634,10 +639,14 @@ def _run_one(
                 else:
                     fresh = True
                     for lnk in range(n_links):
-                        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+                        cf = coef[lnk]
+                        x = cf * (0.5 * (DB[lnk] + DB[lnk + 1]))
+                        gmk = Gm[lnk] * _exp_step(x)
+                        Gm[lnk] = gmk
+                        d = cf * (Tmid[lnk] - Tmid[lnk + 1])
                         u = 0.25 * d * d
-                        n_big += 1 if u > SINHC_U_MAX else 0
-                        gk = Gm[lnk] * _sinhc(u)
+                        n_big += 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
+                        gk = gmk * _sinhc(u)
                         gs[lnk] = gk
                         n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
@@ -797,25 +806,17 @@ def _run_one(
         # next time level: T^n <- T^{n+1}; for lambda(T) also the next step's mid-step temperature
         # 1.5 T^{n+1} - 0.5 T^n, its change, and the predictor 2 T^{n+1} - T^n (into Tnew)
         if nonlinear:
-            # ... and updates the link factors Gm by exp(f dT_m) (polynomial) for the link's mean
-            # mid-step temperature change dT_m, counting updates beyond the polynomial's range. One
-            # pass over the links, node lnk shifted and node lnk + 1's new values recomputed (read
-            # before the next iteration overwrites them); the padding links (factor 0, f = 0) shift
-            # the last node and keep the padding nodes at 0.
+            # (DB; the next step's first pass updates the link factors from it). One pass over the
+            # nodes; the padding nodes stay at 0.
             n_big = 0
-            for lnk in range(n_pad):
-                t0 = TnB[lnk]
-                t1 = TnewB[lnk]
+            for j in range(n_pad):
+                t0 = TnB[j]
+                t1 = TnewB[j]
                 tm = 1.5 * t1 - 0.5 * t0
-                dtm = tm - TmidB[lnk]
-                tm1 = 1.5 * TnewB[lnk + 1] - 0.5 * TnB[lnk + 1]
-                dtm1 = tm1 - TmidB[lnk + 1]
-                x = coefB[lnk] * (0.5 * (dtm + dtm1))
-                n_big += 1 if abs(x) > 0.01 else 0
-                GmB[lnk] *= _exp_step(x)
-                TnB[lnk] = t1
-                TmidB[lnk] = tm
-                TnewB[lnk] = 2.0 * t1 - t0
+                DB[j] = tm - TmidB[j]
+                TnB[j] = t1
+                TmidB[j] = tm
+                TnewB[j] = 2.0 * t1 - t0
         else:
             for j in range(n_nodes):
                 Tn[j] = Tnew[j]
