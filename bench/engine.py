@@ -36,6 +36,54 @@ def row(case, ts, per_call=1):
     return (case, med, float(ts.min()), float(ts.max()), per_call / med)
 
 
+def plain_cn_loop():
+    """The issue's reference (~3.5 ms on this machine): a plain numba Crank-Nicolson loop with a
+    pre-factored tridiagonal matrix, 43 interior nodes, 21600 steps, one output every 5 steps. Written
+    as one would (pivots folded in: one multiply-add per node and sweep on the dependency chain), it
+    measures how fast the host runs at the moment of the benchmark."""
+    from numba import njit
+
+    @njit(fastmath={"contract"})
+    def run(b, c, inv, cf, ue, ui, T0, out):
+        m = T0.shape[0] - 2  # T holds the two faces and the m interior nodes
+        T = T0.copy()
+        rhs = np.empty(m)
+        k = 0
+        for s in range(ue.shape[0] - 1):
+            for i in range(m):
+                rhs[i] = (b[i] * T[i + 1] + c[i] * (T[i] + T[i + 2])) * inv[i]
+            T[0] = ue[s + 1]
+            T[m + 1] = ui[s + 1]
+            rhs[0] += c[0] * ue[s + 1] * inv[0]
+            rhs[m - 1] += c[m - 1] * ui[s + 1] * inv[m - 1]
+            z = 0.0
+            for i in range(m):  # forward: z_i = rhs_i / p_i + (r / p_i) z_{i-1}
+                z = rhs[i] + cf[i] * z
+                T[i + 1] = z
+            x = T[m]
+            for i in range(m - 2, -1, -1):  # backward: x_i = z_i + (r / p_i) x_{i+1}
+                x = T[i + 1] + cf[i] * x
+                T[i + 1] = x
+            if s % 5 == 4:
+                out[k] = T[m // 2]
+                k += 1
+        return T
+
+    m, r, n = 43, 0.25, 21600  # C = 2: r = theta / C
+    b, c = np.full(m, 1 - 2 * r), np.full(m, r)
+    p = np.empty(m)
+    p[0] = 1 + 2 * r
+    for i in range(1, m):
+        p[i] = 1 + 2 * r - r * r / p[i - 1]
+    inv = 1 / p
+    cf = r * inv
+    t = np.arange(n + 1) * 60.0
+    ue, ui = 5 + 10 * np.sin(2 * np.pi * t / 86400), np.full(n + 1, 20.0)
+    T0, out = np.full(m + 2, 15.0), np.empty(n // 5 + 1)
+    T0[0], T0[-1] = ue[0], ui[0]
+    return lambda: run(b, c, inv, cf, ue, ui, T0, out)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=30)
@@ -110,6 +158,17 @@ def main(argv=None):
             per_call=16,
         )
     )
+    plain = plain_cn_loop()
+    rows.append(row("reference: plain numba CN loop, 43 nodes (issue: ~3.5 ms)", timeit(plain, args.repeat)))
+    # the host's speed drifts (shared machine): lambda(T) against the reference loop in interleaved pairs
+    pairs = []
+    for _ in range(args.repeat):
+        t = time.perf_counter()
+        nl_prep.run_batch(nl_one)
+        t1 = time.perf_counter()
+        plain()
+        pairs.append((t1 - t) / (time.perf_counter() - t1))
+    nl_ratio = float(np.median(pairs))
     rows.append(
         row(
             "FDEngine.prepare (grid, laws, output plan; once per study)",
@@ -191,6 +250,11 @@ def main(argv=None):
         print(line)
     if eplus:
         print(f"{'EnergyPlus 25.2 engine (fictitious zone, one run)':58s} {eplus * 1e3:8.0f}ms")
+    print(
+        f"lambda(T) one run / reference loop, {len(pairs)} interleaved pairs: median {nl_ratio:.2f} "
+        f"(p10 {np.percentile(pairs, 10):.2f}, p90 {np.percentile(pairs, 90):.2f}); at the issue's 3.5 ms "
+        f"reference: {3.5 * nl_ratio:.2f} ms"
+    )
     for n, n_out, d_modal, d_general in mem:
         print(
             f"peak RSS growth of one run after warm-up, {n} steps ({n_out} output times): "
