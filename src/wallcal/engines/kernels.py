@@ -385,6 +385,19 @@ def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab
 
 
 @njit(cache=True)
+def _step_conductance(f, dtm_a, dtm_b, gm, tm_a, tm_b):
+    """One link's step of :func:`_run_one`'s first lambda(T) pass: its factor Gm brought to the new
+    mid-step temperatures, ``Gm exp(f (dtm_a + dtm_b) / 2)`` (polynomial), the Kirchhoff-mean
+    conductance ``g* = Gm sinh(x)/x`` with ``x = f (tm_a - tm_b) / 2`` (polynomial), and 1 when
+    either argument is beyond its polynomial's range (else 0). Inlined into the vectorised pass."""
+    x = f * (0.5 * (dtm_a + dtm_b))
+    gm = gm * _exp_step(x)
+    d = f * (tm_a - tm_b)
+    u = 0.25 * d * d
+    return gm, gm * _sinhc(u), 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
+
+
+@njit(cache=True)
 def _drift_limits(cap, theta, dt, bc_type, lim):
     """The part of the drift tolerance that does not depend on ``g0`` (see :func:`_set_factorised`):
     0.05 / (theta dt (1/c_a + 1/c_b)) (known face nodes count as infinite capacity; inf for a link
@@ -624,14 +637,11 @@ def _run_one(
                 n_drift = 0
                 if uniform_theta:
                     for lnk in range(n_links):
-                        cf = coef[lnk]
-                        x = cf * (0.5 * (DB[lnk] + DB[lnk + 1]))
-                        gmk = Gm[lnk] * _exp_step(x)
+                        gmk, gk, big = _step_conductance(
+                            coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
+                        )
                         Gm[lnk] = gmk
-                        d = cf * (Tmid[lnk] - Tmid[lnk + 1])
-                        u = 0.25 * d * d
-                        n_big += 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
-                        gk = gmk * _sinhc(u)
+                        n_big += big
                         g0k = g0[lnk]
                         n_drift += 1 if abs(gk - g0k) > tol[lnk] else 0
                         dp = Tnew[lnk] - Tnew[lnk + 1]
@@ -639,14 +649,11 @@ def _run_one(
                 else:
                     fresh = True
                     for lnk in range(n_links):
-                        cf = coef[lnk]
-                        x = cf * (0.5 * (DB[lnk] + DB[lnk + 1]))
-                        gmk = Gm[lnk] * _exp_step(x)
+                        gmk, gk, big = _step_conductance(
+                            coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
+                        )
                         Gm[lnk] = gmk
-                        d = cf * (Tmid[lnk] - Tmid[lnk + 1])
-                        u = 0.25 * d * d
-                        n_big += 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
-                        gk = gmk * _sinhc(u)
+                        n_big += big
                         gs[lnk] = gk
                         n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
