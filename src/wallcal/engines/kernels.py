@@ -16,34 +16,35 @@ The loop is written as link fluxes: ``F_l = E_l + theta_l g0_l (T^{n+1}_a - T^{n
 explicit part ``E_l`` computed first, the right-hand side ``Cap/dt T^n + sum of E`` and one
 tridiagonal solve with a matrix factorised at conductances ``g0``: up to
 :data:`~wallcal.engines.pcr.PCR_MAX_ROWS` unknowns by parallel cyclic reduction held in vector
-registers (:mod:`wallcal.engines.pcr`), beyond by a lean twisted LU solve. For constant conductances the
-matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances of the step
-``g*`` (Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the
-difference is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised
-only when ``g*`` drifts from ``g0``. The exponential law's Kirchhoff mean is evaluated as
-``Gm sinh(x)/x`` with ``x = f (T_a - T_b) / 2`` and one factor per link at its mean temperature,
-``Gm = g_ref exp(f ((T_a + T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))`` but
-without the division or the cancellation of ``E_a - E_b``. ``Gm`` is updated multiplicatively
-with a short polynomial of ``f dT_m`` (exact ``exp`` when a step changes a temperature a lot, and
-every 1024 steps); ``sinh(x)/x`` is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``).
+registers (:mod:`wallcal.engines.pcr`), beyond by a lean twisted LU solve. For constant conductances
+the matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances of the step
+``g*`` (Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the difference
+is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised only when ``g*``
+drifts from ``g0``. The exponential law's Kirchhoff mean is evaluated as ``Gm sinh(x)/x`` with ``x =
+f (T_a - T_b) / 2`` and one factor per link at its mean temperature, ``Gm = g_ref exp(f ((T_a +
+T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))`` but without the division or the
+cancellation of ``E_a - E_b``. ``Gm`` is updated multiplicatively with a short polynomial of ``f
+dT_m`` (exact ``exp`` when a step changes a temperature a lot, and every 1024 steps); ``sinh(x)/x``
+is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``).
 
-Speed: the step loop of :func:`_run_one` is one numba function without calls on the common path
-(a call, or numba's ``inline="always"``, passes array structs and adds refcount operations that
-spill the solve's chains), compiled with FMA contraction only. Every pass over the links or nodes
-writes few arrays and reads few (at most about eight), which keeps LLVM's run-time aliasing checks
-under its limit so that the pass vectorises; a pass that needs more stays scalar and costs several
-times as much (so lambda(T) fuses g* with the explicit fluxes only for a uniform theta, and the
-explicit fluxes are not recomputed per node in the right-hand side pass). The solve by reduction
-is a few dozen vector instructions per level, no loop, emitted as LLVM IR (see
-:mod:`wallcal.engines.pcr`); it halves the cost of the twisted solve, the only serial work left
-for larger walls: two independent chains (top and bottom half) of m/2 rows each way, each chain
-taking two rows per multiply-add by recursive doubling (pair products precomputed at
-factorisation; the right-hand side is scaled by the pivots' inverses in the pass that forms it),
-with unsigned indices so that numba emits no negative-index wraparound. The time levels are
-shifted by one vectorised pass per step (for lambda(T) over zero-padded buffers, so that it has no
-scalar remainder) that also prepares the next lambda(T) step, instead of rotating array
-references (which costs refcounting in numba). Probe values are formed only at the steps whose
-outputs need them.
+Speed: the step loop of :func:`_run_one` is one numba function whose common path calls only small
+functions that LLVM inlines (the polynomials) and the solve by reduction (a real call, measured no
+slower than its intrinsic placed inline; a call, or numba's ``inline="always"``, passes array
+structs and adds refcount operations, which would spill the twisted solve's chains), compiled with
+FMA contraction only. Every pass over the links or nodes writes few arrays and reads few (at most
+about eight), which keeps LLVM's run-time aliasing checks under its limit so that the pass
+vectorises; a pass that needs more stays scalar and costs several times as much (so lambda(T) fuses
+g* with the explicit fluxes only for a uniform theta, and the explicit fluxes are not recomputed per
+node in the right-hand side pass). The solve by reduction is a few dozen vector instructions per
+level, no loop, emitted as LLVM IR (see :mod:`wallcal.engines.pcr`), half the time of the twisted
+solve in a stand-alone test. The twisted solve, the only serial work left for larger walls, runs two
+independent chains (top and bottom half) of m/2 rows each way, each chain taking two rows per
+multiply-add by recursive doubling (pair products precomputed at factorisation; the right-hand side
+is scaled by the pivots' inverses in the pass that forms it), with unsigned indices so that numba
+emits no negative-index wraparound. The time levels are shifted by one vectorised pass per step (for
+lambda(T) over zero-padded buffers, so that it has no scalar remainder) that also prepares the next
+lambda(T) step, instead of rotating array references (which costs refcounting in numba). Probe
+values are formed only at the steps whose outputs need them.
 
 Boundary codes: 0 surface temperature (Dirichlet), 1 air temperature with a
 surface coefficient (Robin), 2 heat flux density (positive towards the interior).
@@ -474,10 +475,10 @@ def _run_one(
     Layout of a step (see the module docstring for why): lambda(T) only, one vectorised pass over
     the links updating the link factors ``Gm``, forming ``g*`` and the two counts that trigger the
     rare branch (exact factors / closed form / table laws, refactorisation) and, when every link has
-    the same theta, the explicit fluxes
-    ``E`` without storing ``g*`` (else ``g*`` is stored and ``E`` formed by a second pass, as after a
-    rare branch); the right-hand side, scaled for the solve; the solve, written out (two chains, two
-    rows per multiply-add); the scalar face fluxes, probes (only when an output needs them) and
+    the same theta, the explicit fluxes ``E`` without storing ``g*`` (else ``g*`` is stored and ``E``
+    formed by a second pass, as after a rare branch); the right-hand side, scaled for the solve; the
+    solve (by reduction in vector registers, or written out: two chains, two rows per multiply-add);
+    the scalar face fluxes, probes (only when an output needs them) and
     outputs; one pass over the nodes that shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the
     next step: mid-step temperature, its change (from which the next step's first pass updates the
     link factors ``Gm``) and the predictor written into ``Tnew``.
