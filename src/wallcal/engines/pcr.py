@@ -203,7 +203,7 @@ def pcr_work(m):
     return work
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     """Coefficients of the reduction of the symmetric tridiagonal matrix with diagonal ``diag[:m]``
     and off-diagonal ``off[i]`` between rows i and i + 1: per level (level-major, 8 n_regs per
@@ -216,7 +216,8 @@ def pcr_coefficients(diag, off, m, n_regs, al, ga, w, work):
     between zero margins (unit diagonal) wider than any stride, so that every level is one
     branch-free, vectorised pass (the couplings of row i to rows beyond the ends are zero by
     construction), with one division per row and level (the reciprocals of the diagonal) and none
-    in the stopping test."""
+    in the stopping test. numpy's error model (no zero-division check, whose branch would keep the
+    division pass scalar): the diagonal of an M-matrix never vanishes."""
     n = 8 * n_regs
     P = PCR_WORK_PAD
     a = work[0]
