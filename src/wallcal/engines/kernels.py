@@ -687,7 +687,7 @@ def _run_one(
             for lnk in range(n_links):
                 Epad[lnk + 1] = gex[lnk] * (Tn[lnk] - Tn[lnk + 1])
         if m > 0:
-            # right-hand side, scaled by the pivots' inverses (sc) for the solve
+            # right-hand side, scaled for the solve (sc: the pivots' inverses of the twisted solve, 1 for the reduction)
             for i in range(m):
                 j = j0 + i
                 rhs[i] = (cdt[j] * Tn[j] + Epad[j] - Epad[j + 1]) * sc[i]
