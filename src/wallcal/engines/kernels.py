@@ -25,7 +25,9 @@ f (T_a - T_b) / 2`` and one factor per link at its mean temperature, ``Gm = g_re
 T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))`` but without the division or the
 cancellation of ``E_a - E_b``. ``Gm`` is updated multiplicatively with a short polynomial of ``f
 dT_m`` (exact ``exp`` when a step changes a temperature a lot, and every 1024 steps); ``sinh(x)/x``
-is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``).
+is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``). While every link's arguments are
+small (checked at each exact step) the step takes shorter polynomials of the same precision
+(:data:`X_SHORT`, :data:`U_SHORT`); a link beyond their range sends its step to the exact branch.
 
 Speed: the step loop of :func:`_run_one` is one numba function whose common path calls only small
 functions that LLVM inlines (the polynomials) and the solve by reduction (a real call, measured no
@@ -355,6 +357,24 @@ def _sinhc(u):
 
 SINHC_U_MAX = 0.0625  # |x| <= 0.25, i.e. |f (T_a - T_b)| <= 0.5
 
+# Ranges of the short polynomials of a lambda(T) step (_step_conductance_short). On the bundled
+# example with f = 0.0046 /K on four layers and 1-minute steps, a step changes a link factor's
+# argument by |f dT_m| <= 1.4e-3 (~1e-4 typically) and the links have x^2 <= 6e-5
+X_SHORT = 0.002  # |f dT_m| <= X_SHORT: exp by its degree-4 polynomial, relative error < 3e-16
+U_SHORT = 1e-3  # x^2 <= U_SHORT: sinh(x)/x by its degree-6 polynomial, relative error < 3e-18
+
+
+@njit(cache=True, fastmath=True)
+def _exp_short(x):
+    """exp(x) for |x| <= X_SHORT (degree-4 Taylor polynomial, relative error < 3e-16)."""
+    return 1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0))))
+
+
+@njit(cache=True, fastmath=True)
+def _sinhc_short(u):
+    """sinh(x) / x for u = x^2 <= U_SHORT (degree 6 in x, relative error < 3e-18)."""
+    return 1.0 + u * (1.0 / 6.0 + u * (1.0 / 120.0 + u * (1.0 / 5040.0)))
+
 
 @njit(cache=True)
 def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm):
@@ -396,6 +416,29 @@ def _step_conductance(f, dtm_a, dtm_b, gm, tm_a, tm_b):
     d = f * (tm_a - tm_b)
     u = 0.25 * d * d
     return gm, gm * _sinhc(u), 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
+
+
+@njit(cache=True)
+def _step_conductance_short(f, dtm_a, dtm_b, gm, tm_a, tm_b):
+    """:func:`_step_conductance` with the short polynomials: 1 when either argument is beyond their
+    ranges (X_SHORT, U_SHORT), else 0. Used while every link is well inside them (:func:`_short_ok`)."""
+    x = f * (0.5 * (dtm_a + dtm_b))
+    gm = gm * _exp_short(x)
+    d = f * (tm_a - tm_b)
+    u = 0.25 * d * d
+    return gm, gm * _sinhc_short(u), 1 if (u > U_SHORT) | (abs(x) > X_SHORT) else 0
+
+
+@njit(cache=True)
+def _short_ok(coef, Tmid):
+    """Whether every link's ``x^2`` (:func:`_nonlinear_conductances`) is below a quarter of
+    ``U_SHORT``: the steps that follow then take the short polynomials (a link that leaves their
+    range sends its step to the exact branch, and the run back to the long polynomials)."""
+    for lnk in range(coef.shape[0]):
+        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+        if 0.25 * d * d > 0.25 * U_SHORT:
+            return False
+    return True
 
 
 @njit(cache=True)
@@ -509,7 +552,6 @@ def _run_one(
     n_regs = (m + 7) // 8 if use_pcr else 1
     n_r = 8 * n_regs
     rhs = np.zeros(max(mm, n_r))  # zero-padded to whole registers
-    xr = np.zeros(n_r)  # solution of the reduction (zero-padded)
     r_al = np.zeros(PCR_MAX_LEVELS * n_r)  # per-level coefficients of the reduction
     r_ga = np.zeros(PCR_MAX_LEVELS * n_r)
     r_w = np.zeros(n_r)
@@ -525,7 +567,7 @@ def _run_one(
     # scalar or narrower remainder loop (multiples of 4 measured ~5 % slower)
     n_pad = (n_links // 8 + 1) * 8
     TnB = np.zeros(n_pad + 1)
-    TnewB = np.zeros(n_pad + 1)
+    TnewB = np.zeros(max(n_pad + 1, j0 + n_r))  # room for the reduction's padded solution written at Tu
     TmidB = np.zeros(n_pad + 1)
     DB = np.zeros(n_pad + 1)  # change of the mid-step temperature over the last step (lambda(T))
     GmB = np.zeros(n_pad)
@@ -541,6 +583,7 @@ def _run_one(
     om0 = 1.0 - th0
     uniform_theta = True  # one theta for every link (the fused lambda(T) pass)
     n_big = 0  # link factor updates beyond the polynomial's range (lambda(T))
+    short = False  # lambda(T): the fused pass takes the short polynomials
     for lnk in range(n_links):
         omth[lnk] = 1.0 - theta[lnk]
         thg[lnk] = theta[lnk] * g0[lnk]
@@ -590,6 +633,7 @@ def _run_one(
         _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm)
         _drift_limits(cap, theta, dt, bc_type, lim)
         _set_factorised(g0, gs, theta, drift, lim, thg, tol)
+        short = not has_table and _short_ok(coef, Tmid)
     # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
     gex = np.empty(n_links)
     for lnk in range(n_links):
@@ -636,7 +680,18 @@ def _run_one(
                 # the explicit fluxes E too, without storing g*; the rare branches (exact factors,
                 # table laws, refactorisation) store g* and form E afterwards.
                 n_drift = 0
-                if uniform_theta:
+                if uniform_theta and short:  # the short polynomials (see _short_ok)
+                    for lnk in range(n_links):
+                        gmk, gk, big = _step_conductance_short(
+                            coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
+                        )
+                        Gm[lnk] = gmk
+                        n_big += big
+                        g0k = g0[lnk]
+                        n_drift += 1 if abs(gk - g0k) > tol[lnk] else 0
+                        dp = Tnew[lnk] - Tnew[lnk + 1]
+                        Epad[lnk + 1] = gk * (th0 * dp + om0 * (Tn[lnk] - Tn[lnk + 1])) - (th0 * g0k) * dp
+                elif uniform_theta:
                     for lnk in range(n_links):
                         gmk, gk, big = _step_conductance(
                             coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
@@ -659,6 +714,7 @@ def _run_one(
                         n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
                     fresh = True
+                    short = n_big == 0 and _short_ok(coef, Tmid)
                     _exact_factors(coef, tref, g_ref, Tmid, Gm)
                     _nonlinear_conductances(
                         gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm
@@ -705,9 +761,11 @@ def _run_one(
                 rhs[m - 1] -= (thi * ui[n + 1] + (1.0 - thi) * ui[n]) * sc[m - 1]
             if use_pcr:
                 # solve A0 x = rhs by parallel cyclic reduction in vector registers (pcr.py)
-                pcr_solve(n_regs, rhs, r_al, r_ga, r_w, xr, n_lev)
-                for i in range(m):
-                    Tu[i] = xr[i]
+                # (straight into Tnew: the padding rows' zeros land on the interior face and beyond,
+                # inside Tnew's padded buffer; a known interior face is set again)
+                pcr_solve(n_regs, rhs, r_al, r_ga, r_w, Tu, n_lev)
+                if dir_i:
+                    Tnew[n_nodes - 1] = ui[n + 1]
             else:
                 # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
                 # chains (top and bottom half), interleaved, the running values in registers, each taking

@@ -170,7 +170,9 @@ _s1, _s2, _s3, _s4, _s5, _s6, _s7, _s8 = PCR_SOLVERS
 
 @njit(cache=True)
 def pcr_solve(n_regs, r, al, ga, w, x, n_levels):
-    """x = A^-1 r by the reduction of :func:`pcr_coefficients` (r and x: 8 n_regs rows, zero-padded)."""
+    """x = A^-1 r by the reduction of :func:`pcr_coefficients` (r and x: 8 n_regs rows, zero-padded;
+    x may be a view of the first m rows of a longer buffer: all 8 n_regs rows are written, zeros
+    beyond m)."""
     if n_regs <= 4:
         if n_regs == 1:
             _s1(r, al, ga, w, x, n_levels)
