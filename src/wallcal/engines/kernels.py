@@ -430,10 +430,13 @@ def _step_conductance_short(f, dtm_a, dtm_b, gm, tm_a, tm_b):
 
 
 @njit(cache=True)
-def _short_ok(coef, Tmid):
+def _short_ok(coef, Tmid, has_table):
     """Whether every link's ``x^2`` (:func:`_nonlinear_conductances`) is below a quarter of
     ``U_SHORT``: the steps that follow then take the short polynomials (a link that leaves their
-    range sends its step to the exact branch, and the run back to the long polynomials)."""
+    range sends its step to the exact branch, and the run back to the long polynomials). Never
+    with table laws, whose every step takes the exact branch."""
+    if has_table:
+        return False
     for lnk in range(coef.shape[0]):
         d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
         if 0.25 * d * d > 0.25 * U_SHORT:
@@ -633,7 +636,7 @@ def _run_one(
         _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm)
         _drift_limits(cap, theta, dt, bc_type, lim)
         _set_factorised(g0, gs, theta, drift, lim, thg, tol)
-        short = not has_table and _short_ok(coef, Tmid)
+        short = _short_ok(coef, Tmid, has_table)
     # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
     gex = np.empty(n_links)
     for lnk in range(n_links):
@@ -714,7 +717,7 @@ def _run_one(
                         n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
                     fresh = True
-                    short = n_big == 0 and _short_ok(coef, Tmid)
+                    short = n_big == 0 and _short_ok(coef, Tmid, has_table)
                     _exact_factors(coef, tref, g_ref, Tmid, Gm)
                     _nonlinear_conductances(
                         gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm
