@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import StudyError, closest
 from ..grid import PropertyArrays
-from ..study import _check_number, _Problems, _Table
+from ..schema import Problems, Table, check_number
 from ..wall import Wall
 
 LAYER_PROPERTIES = (
@@ -176,8 +176,8 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
         Listing every problem with its key path.
     """
     raw = study.calibration if raw is None else raw
-    problems = _Problems()
-    t = _Table(raw, "calibration", problems, CALIBRATION_KEYS)
+    problems = Problems()
+    t = Table(raw, "calibration", problems, CALIBRATION_KEYS)
     wall = study.wall
     sensor_names = [s.name for s in study.sensors]
     targets_raw = t.raw("targets", None)
@@ -221,22 +221,22 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
         kind = pt.str("bounds_kind", "relative" if has_layers else "absolute", choices=("relative", "absolute"))
         bounds = pt.raw("bounds")
         if not (isinstance(bounds, list) and len(bounds) == 2):
-            problems.add(pt._p("bounds"), "must be a pair [lower, upper]")
+            problems.add(pt.at("bounds"), "must be a pair [lower, upper]")
             continue
-        lo = _check_number(bounds[0], pt._p("bounds") + "[0]", problems)
-        hi = _check_number(bounds[1], pt._p("bounds") + "[1]", problems)
+        lo = check_number(bounds[0], pt.at("bounds") + "[0]", problems)
+        hi = check_number(bounds[1], pt.at("bounds") + "[1]", problems)
         if prop is None or kind is None or lo is None or hi is None:
             continue
         if not hi > lo:
-            problems.add(pt._p("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
+            problems.add(pt.at("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
             continue
         if has_probe:
             name = pt.raw("probe")
             if not isinstance(name, str) or name not in probe_names:
-                problems.add(pt._p("probe"), f"{name!r} is not a probe of the wall; {closest(str(name), probe_names)}")
+                problems.add(pt.at("probe"), f"{name!r} is not a probe of the wall; {closest(str(name), probe_names)}")
                 continue
             if ("probe:" + name, prop) in used:
-                problems.add(pt._p("probe"), f"probe {name!r} {prop} is already a parameter")
+                problems.add(pt.at("probe"), f"probe {name!r} {prop} is already a parameter")
                 continue
             used.add(("probe:" + name, prop))
             base = wall.probe(name).depth
@@ -245,7 +245,7 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
         else:
             ids = pt.raw("layers")
             if not isinstance(ids, list) or not ids:
-                problems.add(pt._p("layers"), "must be a non-empty list of layer ids")
+                problems.add(pt.at("layers"), "must be a non-empty list of layer ids")
                 continue
             ids = [str(i) if isinstance(i, int) and not isinstance(i, bool) else i for i in ids]
             bad = False
@@ -253,12 +253,12 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
             for k, lid in enumerate(ids):
                 if not isinstance(lid, str) or lid not in layer_ids:
                     problems.add(
-                        f"{pt._p('layers')}[{k}]", f"{lid!r} is not a layer id; {closest(str(lid), layer_ids)}"
+                        f"{pt.at('layers')}[{k}]", f"{lid!r} is not a layer id; {closest(str(lid), layer_ids)}"
                     )
                     bad = True
                     continue
                 if (lid, prop) in used:
-                    problems.add(f"{pt._p('layers')}[{k}]", f"layer {lid!r} {prop} is already a parameter")
+                    problems.add(f"{pt.at('layers')}[{k}]", f"layer {lid!r} {prop} is already a parameter")
                     bad = True
                     continue
                 used.add((lid, prop))
@@ -269,12 +269,12 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
                     "specific_heat",
                     "conductivity_temperature_coefficient",
                 ):
-                    problems.add(f"{pt._p('layers')}[{k}]", f"layer {lid!r} is a no-mass layer: it has no {prop}")
+                    problems.add(f"{pt.at('layers')}[{k}]", f"layer {lid!r} is a no-mass layer: it has no {prop}")
                     bad = True
                     continue
                 if prop == "contact_resistance" and layer_ids.index(lid) == len(layer_ids) - 1:
                     problems.add(
-                        f"{pt._p('layers')}[{k}]", "the innermost layer has no next layer for a contact resistance"
+                        f"{pt.at('layers')}[{k}]", "the innermost layer has no next layer for a contact resistance"
                     )
                     bad = True
                     continue
@@ -285,7 +285,7 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
             values = [getattr(wall.layers[i], prop) or 0.0 for i in idx]
             if len(set(values)) > 1:
                 problems.add(
-                    pt._p("layers"),
+                    pt.at("layers"),
                     f"tied layers must share a base {prop}; got "
                     + ", ".join(f"{wall.layers[i].id}: {v:g}" for i, v in zip(idx, values, strict=True)),
                 )
@@ -295,7 +295,7 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
         if kind == "relative":
             if base == 0.0:
                 problems.add(
-                    pt._p("bounds_kind"),
+                    pt.at("bounds_kind"),
                     f'relative bounds need a non-zero base value ({pname} is 0): use bounds_kind = "absolute"',
                 )
                 continue
@@ -305,17 +305,17 @@ def parse_space(study, raw: dict | None = None) -> ParameterSpace:
             lower, upper = lo, hi
         if not lower <= base <= upper:
             problems.add(
-                pt._p("bounds"), f"the base value {base:g} of {pname} is outside the bounds [{lower:g}, {upper:g}]"
+                pt.at("bounds"), f"the base value {base:g} of {pname} is outside the bounds [{lower:g}, {upper:g}]"
             )
             continue
         if prop in _POSITIVE and lower <= 0:
-            problems.add(pt._p("bounds"), f"{pname} must stay > 0 over the whole box; lower bound is {lower:g}")
+            problems.add(pt.at("bounds"), f"{pname} must stay > 0 over the whole box; lower bound is {lower:g}")
             continue
         if prop in _NONNEGATIVE and lower < 0:
-            problems.add(pt._p("bounds"), f"{pname} must stay >= 0 over the whole box; lower bound is {lower:g}")
+            problems.add(pt.at("bounds"), f"{pname} must stay >= 0 over the whole box; lower bound is {lower:g}")
             continue
         if prop == "depth" and upper > wall.thickness:
-            problems.add(pt._p("bounds"), f"{pname} upper bound {upper:g} m is beyond the wall ({wall.thickness:g} m)")
+            problems.add(pt.at("bounds"), f"{pname} upper bound {upper:g} m is beyond the wall ({wall.thickness:g} m)")
             continue
         params.append(Parameter(pname, prop, idx, pt.raw("probe") if has_probe else None, base, lower, upper))
     if t.has("parameters") and not params and not problems:

@@ -1,0 +1,243 @@
+"""Wall files: reading and writing the ``[wall]`` table.
+
+A wall file is a TOML file with a ``[wall]`` table (layers from the exterior, probes), the same
+table a study file holds; :func:`load_wall` reads one (every problem at once, with key paths),
+:func:`dump_wall` writes one that :func:`load_wall` reads back (``calibrated_wall.toml``).
+``docs/study-file.md`` documents every key.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .errors import StudyError
+from .schema import MISSING, Problems, Table, check_number, describe, read_toml
+from .wall import Layer, Probe, Wall
+
+FACES = ("exterior", "interior")
+
+LAYER_KEYS = (
+    "id",
+    "material",
+    "thickness",
+    "conductivity",
+    "density",
+    "specific_heat",
+    "conductivity_temperature_coefficient",
+    "reference_temperature",
+    "conductivity_table",
+    "contact_resistance",
+    "thermal_resistance",
+)
+PROBE_KEYS = ("name", "depth", "depth_from", "side")
+WALL_KEYS = ("name", "description", "layers", "probes", "file")
+
+
+def parse_wall(t: Table, problems: Problems, base_dir: Path | None) -> Wall | None:
+    if t.has("file"):
+        others = [k for k in t.data if k not in ("file",)]
+        fname = t.str("file")
+        if others:
+            problems.add(t.path, f"with 'file', give no other wall keys (found {', '.join(others)})")
+        if fname is None:
+            return None
+        path = (base_dir / fname) if base_dir else Path(fname)
+        try:
+            return load_wall(path)
+        except StudyError as exc:
+            for p in exc.problems:
+                problems.append(f"{t.path}.file ({path}): {p}")
+            return None
+    layers: list[Layer] = []
+    ids: set[str] = set()
+    geometry_thickness = 0.0
+    for lt in t.tables("layers", LAYER_KEYS):
+        lid = lt.data.get("id")
+        if isinstance(lid, int) and not isinstance(lid, bool):
+            lid = str(lid)
+        elif not isinstance(lid, str):
+            problems.add(
+                lt.at("id"),
+                'required, a string such as "3"' if lid is None else f"must be a string, got {describe(lid)}",
+            )
+            lid = None
+        if lid is not None:
+            if lid in ids:
+                problems.add(lt.at("id"), f"layer id {lid!r} is used twice")
+            ids.add(lid)
+        massless = lt.has("thermal_resistance")
+        thickness = lt.num(
+            "thickness", 0.0 if massless else MISSING, ge=0.0 if massless else None, gt=None if massless else 0.0
+        )
+        if thickness is not None:
+            geometry_thickness += thickness  # probes are checked against every valid thickness
+        kw: dict[str, Any] = {}
+        if massless:
+            kw["thermal_resistance"] = lt.num("thermal_resistance", gt=0.0)
+            for k in (
+                "conductivity",
+                "density",
+                "specific_heat",
+                "conductivity_table",
+                "conductivity_temperature_coefficient",
+            ):
+                if lt.has(k):
+                    problems.add(lt.at(k), "a no-mass layer (thermal_resistance) takes no " + k)
+        else:
+            table = None
+            if lt.has("conductivity_table"):
+                table = _parse_table(lt.raw("conductivity_table"), lt.at("conductivity_table"), problems)
+            kw["conductivity"] = lt.num("conductivity", None if table is not None else MISSING, gt=0.0)
+            kw["density"] = lt.num("density", gt=0.0)
+            kw["specific_heat"] = lt.num("specific_heat", gt=0.0)
+            kw["conductivity_temperature_coefficient"] = lt.num(
+                "conductivity_temperature_coefficient", 0.0, ge=-0.2, le=0.2
+            )
+            kw["conductivity_table"] = table
+            if table is not None and kw["conductivity_temperature_coefficient"]:
+                problems.add(
+                    lt.at("conductivity_table"),
+                    "give either conductivity_table or conductivity_temperature_coefficient, not both",
+                )
+        kw["reference_temperature"] = lt.num("reference_temperature", 10.0, ge=-100.0, le=200.0)
+        kw["contact_resistance"] = lt.num("contact_resistance", 0.0, ge=0.0)
+        material = lt.str("material", "")
+        if (
+            None in (lid, thickness)
+            or any(kw.get(k) is None for k in ("density", "specific_heat", "thermal_resistance") if k in kw)
+            or ("conductivity" in kw and kw["conductivity"] is None and kw.get("conductivity_table") is None)
+        ):
+            continue
+        if kw.get("conductivity_table") is not None and kw.get("conductivity") is None:
+            kw["conductivity"] = None
+        layers.append(
+            Layer(
+                id=lid,
+                thickness=thickness,
+                material=material or "",
+                **{k: v for k, v in kw.items() if v is not None or k == "conductivity_table"},
+            )
+        )
+    if t.has("layers") and isinstance(t.raw("layers"), list) and not t.raw("layers"):
+        problems.add(t.at("layers"), "the wall needs at least one layer")
+    total = geometry_thickness  # also counts layers dropped for another bad value: no follow-up problems
+    probes: list[Probe] = []
+    names: set[str] = set()
+    for pt in t.tables("probes", PROBE_KEYS, required=False):
+        name = pt.str("name")
+        depth = pt.num("depth", ge=0.0)
+        depth_from = pt.str("depth_from", "exterior", choices=FACES)
+        side = pt.str("side", None, choices=FACES)
+        if name is not None:
+            if name in names:
+                problems.add(pt.at("name"), f"probe {name!r} is defined twice")
+            names.add(name)
+        if name is None or depth is None:
+            continue
+        if layers and depth > total * (1 + 1e-12):
+            problems.add(pt.at("depth"), f"{depth:g} m is beyond the wall's thickness {total:g} m")
+            continue
+        if depth_from == "interior":
+            depth = max(total - depth, 0.0)
+        probes.append(Probe(name=name, depth=depth, side=side))
+    name = t.str("name", "")
+    desc = t.str("description", "")
+    if not layers:
+        return None
+    return Wall(layers=tuple(layers), probes=tuple(probes), name=name or "", description=desc or "")
+
+
+def _parse_table(v, path, problems):
+    if not isinstance(v, list) or len(v) < 2:
+        problems.add(path, "must be a list of at least two [temperature_degC, conductivity] pairs")
+        return None
+    out = []
+    for i, pair in enumerate(v):
+        if not isinstance(pair, list) or len(pair) != 2:
+            problems.add(f"{path}[{i}]", "must be a pair [temperature_degC, conductivity]")
+            return None
+        tc = check_number(pair[0], f"{path}[{i}][0]", problems)
+        lam = check_number(pair[1], f"{path}[{i}][1]", problems, gt=0.0)
+        if tc is None or lam is None:
+            return None
+        out.append((tc, lam))
+    if any(b[0] <= a[0] for a, b in zip(out, out[1:], strict=False)):
+        problems.add(path, "temperatures must increase")
+        return None
+    return tuple(out)
+
+
+def load_wall(path: str | Path) -> Wall:
+    """Read a wall file (a TOML file with a ``[wall]`` table, or a study file).
+
+    Raises
+    ------
+    StudyError
+        With every problem found.
+    """
+    path = Path(path)
+    raw = read_toml(path)
+    problems = Problems()
+    if "wall" not in raw:
+        raise StudyError(["wall: required table, missing"], source=str(path))
+    wt = Table(raw["wall"], "wall", problems, WALL_KEYS)
+    wall = parse_wall(wt, problems, path.parent)
+    if problems:
+        raise StudyError(problems, source=str(path))
+    if wall is None:
+        raise StudyError(["wall: no valid layer"], source=str(path))
+    return wall
+
+
+# ============================================================================ writing walls
+def wall_to_dict(wall: Wall) -> dict:
+    """The ``[wall]`` table of a wall file (inverse of :func:`load_wall`)."""
+    layers = []
+    for layer in wall.layers:
+        d: dict[str, Any] = {"id": layer.id}
+        if layer.material:
+            d["material"] = layer.material
+        d["thickness"] = layer.thickness
+        if layer.is_massless:
+            d["thermal_resistance"] = layer.thermal_resistance
+        else:
+            if layer.conductivity is not None:
+                d["conductivity"] = layer.conductivity
+            d["density"] = layer.density
+            d["specific_heat"] = layer.specific_heat
+            if layer.conductivity_temperature_coefficient:
+                d["conductivity_temperature_coefficient"] = layer.conductivity_temperature_coefficient
+            if layer.conductivity_table is not None:
+                d["conductivity_table"] = [list(p) for p in layer.conductivity_table]
+        if layer.reference_temperature != 10.0 or layer.is_temperature_dependent:
+            d["reference_temperature"] = layer.reference_temperature
+        if layer.contact_resistance:
+            d["contact_resistance"] = layer.contact_resistance
+        layers.append(d)
+    out: dict[str, Any] = {}
+    if wall.name:
+        out["name"] = wall.name
+    if wall.description:
+        out["description"] = wall.description
+    out["layers"] = layers
+    if wall.probes:
+        probes = []
+        for p in wall.probes:
+            d = {"name": p.name, "depth": p.depth}
+            if p.side:
+                d["side"] = p.side
+            probes.append(d)
+        out["probes"] = probes
+    return out
+
+
+def dump_wall(wall: Wall, header: str = "") -> str:
+    """A wall file (TOML text) that :func:`load_wall` reads back, and that a study can use with
+    ``[wall] file = "..."``."""
+    import tomli_w
+
+    text = tomli_w.dumps({"wall": wall_to_dict(wall)})
+    if header:
+        text = "".join(f"# {line}\n" for line in header.splitlines()) + text
+    return text
