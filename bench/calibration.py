@@ -35,7 +35,7 @@ ALGOS = {
 
 
 def tied_15(study):
-    cal = copy.deepcopy(study.calibration)
+    cal = copy.deepcopy(study.raw["calibration"])
     params = [p for p in cal["parameters"] if p["layers"] != ["6"]]
     for p in params:
         if p["layers"] == ["4"]:
@@ -116,7 +116,7 @@ def main(argv=None):
             )
     print(
         f"\nnumba threads: {__import__('numba').get_num_threads()}; seed "
-        f"{study.calibration.get('seed', 1)} (the same seed gives the same result)"
+        f"{study.calibration.seed} (the same seed gives the same result)"
     )
 
 

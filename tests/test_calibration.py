@@ -27,11 +27,11 @@ def raw():
 
 
 def space_problems(raw, calibration):
+    """The problems of a study whose [calibration] table is ``calibration``: found when it is loaded."""
     r = copy.deepcopy(raw)
     r["calibration"] = calibration
-    study = parse_study(r, base_dir=EXAMPLE.parent)
     with pytest.raises(StudyError) as exc:
-        parse_space(study)
+        parse_study(r, base_dir=EXAMPLE.parent)
     return exc.value.problems
 
 
@@ -76,7 +76,7 @@ def test_space_validation_reports_every_problem(raw):
 
 
 def test_parameters_map_to_properties(example_study):
-    r = copy.deepcopy(example_study.calibration)
+    r = copy.deepcopy(example_study.raw["calibration"])
     r["parameters"] = r["parameters"] + [
         {"probe": "T3A", "property": "depth", "bounds": [-0.005, 0.005], "bounds_kind": "absolute"}
     ]

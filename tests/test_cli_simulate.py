@@ -65,6 +65,24 @@ def test_bad_study_one_line_error_and_exit_2(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("command", ["simulate", "serve", "calibrate", "run"])
+def test_broken_calibration_fails_every_command_at_load(tmp_path, capsys, command):
+    """A broken [calibration] table is an error when the study is loaded: exit 2 with the key path."""
+    d = tmp_path / "s"
+    d.mkdir()
+    for f in ("measured.csv", "true_wall.toml"):
+        shutil.copy(EXAMPLE.parent / f, d)
+    text = EXAMPLE.read_text()
+    old = 'property = "specific_heat"\nbounds = [-0.2, 0.2]'
+    text = text.replace(old, 'property = "specific_heat"\nbounds = [0.2]', 1)  # calibration.parameters[2]
+    (d / "study.toml").write_text(text)
+    args = [command, str(d / "study.toml")] + (["--port", "0"] if command == "serve" else [])
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "calibration.parameters[2].bounds: must be a pair [lower, upper]" in err, err
+    assert "Traceback" not in err and not (d / "out").exists()
+
+
 def test_debug_shows_traceback(tmp_path):
     from wallcal.errors import StudyError
 

@@ -144,6 +144,7 @@ def test_iso9869_without_out_writes_nothing(capsys, tmp_path, monkeypatch):
 def _study_copy(tmp_path, edit):
     src = EXAMPLE.parent
     shutil.copy(src / "measured.csv", tmp_path / "measured.csv")
+    shutil.copy(src / "true_wall.toml", tmp_path / "true_wall.toml")
     text = edit((src / "study.toml").read_text())
     path = tmp_path / "study.toml"
     path.write_text(text)

@@ -29,6 +29,7 @@ from wallcal.errors import DataError, WallcalError
 from wallcal.study import parse_study
 
 RAW = tomllib.loads(EXAMPLE.read_text())
+RAW.pop("calibration")  # these studies live in temporary folders without the reference wall
 COLUMNS = ["TSe", "T3A", "T2A", "T1A", "TSi", "qe", "qi"]
 BOUNDARY = {"TSe", "TSi"}
 N = 2 * 144 + 1  # two days of 10-minute samples

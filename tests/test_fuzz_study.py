@@ -49,8 +49,8 @@ def _leaves(node, path=""):
     return out
 
 
-# [calibration] is validated by wallcal.calibration.parse_space (tests/test_calibration.py), not here
-PATHS = [(p, v) for p, v in _leaves(RAW) if not p.startswith("calibration")]
+# every key, [calibration] included (validated at load with the others)
+PATHS = _leaves(RAW)
 LEAVES = [(p, v) for p, v in PATHS if not isinstance(v, (dict, list))]
 # keys that must be there (deleting them is an error at that path)
 REQUIRED = {

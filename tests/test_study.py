@@ -99,6 +99,7 @@ def test_optional_layer_keys(raw):
     raw["wall"]["layers"][1]["conductivity_table"] = [[0.0, 0.19], [40.0, 0.21]]
     raw["wall"]["layers"][1].pop("conductivity")
     raw["wall"]["layers"].insert(1, {"id": "gap", "thickness": 0.0, "thermal_resistance": 0.17})
+    raw.pop("calibration")  # its relative bounds need layer 4's conductivity
     s = parse_study(raw, base_dir=EXAMPLE.parent)
     assert s.wall.layers[0].conductivity_at(20.0) == pytest.approx(0.04 * 2.718281828 ** (0.046), rel=1e-6)
     assert s.wall.layers[1].is_massless
@@ -136,6 +137,7 @@ def test_wall_file_and_wall_from_study(tmp_path, raw):
     raw2 = copy.deepcopy(raw)
     raw2["wall"] = {"file": str(wall_toml)}
     raw2["sensors"] = [raw["sensors"][0]]
+    raw2.pop("calibration")  # its parameters name the example's layers
     s = parse_study(raw2, base_dir=EXAMPLE.parent)
     assert s.wall.layers[0].id == "a"
 
@@ -150,3 +152,56 @@ def test_not_utf8_and_bad_toml(tmp_path):
         load_study(p)
     with pytest.raises(StudyError, match="file not found"):
         load_study(tmp_path / "missing.toml")
+
+
+# ---------------------------------------------------------------------------- [calibration], validated at load
+def test_calibration_is_parsed_at_load(example_study, raw):
+    from wallcal.calibration import ParameterSpace
+
+    sp = example_study.calibration
+    assert isinstance(sp, ParameterSpace) and sp.n == 18 and sp.targets == ("T3A", "T2A", "T1A")
+    assert sp.reference_wall == EXAMPLE.parent / "true_wall.toml"
+    with pytest.raises(AttributeError):
+        sp.seed = 2  # frozen
+    raw.pop("calibration")
+    assert parse_study(raw, base_dir=EXAMPLE.parent).calibration is None
+
+
+def test_broken_calibration_fails_at_load_with_every_problem(raw):
+    raw["calibration"]["parameters"][2]["bounds"] = [0.2, -0.2]
+    raw["calibration"]["parameters"][4]["layers"] = ["44"]
+    raw["calibration"]["objective"] = "rmse"
+    raw["simulation"]["engine"] = "fd-cnn"  # a problem elsewhere: reported in the same error
+    probs = problems_of(raw)
+    assert "calibration.parameters[2].bounds: upper bound must exceed lower bound, got [0.2, -0.2]" in probs
+    assert any(p.startswith("calibration.parameters[4].layers[0]: '44' is not a layer id") for p in probs)
+    assert any(p.startswith("calibration.objective: must be one of cse") for p in probs)
+    assert any(p.startswith("simulation.engine:") for p in probs)
+    assert len(probs) == 4, probs
+
+
+def test_calibration_settings_checked_at_load(raw):
+    raw["calibration"]["settings"] = {"particle": 3, "generations": 2.5, "polish": "yes", "topology": "ring"}
+    probs = problems_of(raw)
+    assert any(p.startswith("calibration.settings.particle: unknown setting for pso-hj; did you mean") for p in probs)
+    assert "calibration.settings.generations: must be a whole number, got 2.5" in probs
+    assert "calibration.settings.polish: must be true or false, got 'yes'" in probs
+    assert any(p.startswith("calibration.settings.topology: must be one of vonneumann, gbest") for p in probs)
+    assert len(probs) == 4, probs
+    raw["calibration"]["algorithm"] = "nelder-mead"
+    raw["calibration"]["settings"] = {"maxfev": 100}
+    s = parse_study(raw, base_dir=EXAMPLE.parent)
+    assert dict(s.calibration.settings) == {"maxfev": 100}
+
+
+def test_calibration_reference_wall_checked_at_load(raw, tmp_path):
+    raw["calibration"]["reference_wall"] = "no_such_wall.toml"
+    (probs,) = problems_of(raw)
+    assert probs.startswith("calibration.reference_wall (") and "file not found" in probs
+
+
+def test_calibration_gives_no_follow_up_problems_of_a_broken_wall(raw):
+    raw["wall"]["layers"][2]["density"] = -40.0  # layer 5 is dropped; the parameters naming it are not flagged
+    assert problems_of(raw) == ["wall.layers[2].density: must be > 0, got -40"]
+    raw["calibration"]["parameters"][0]["bounds"] = [0.3]  # a problem that does not depend on the wall
+    assert problems_of(raw)[1] == "calibration.parameters[0].bounds: must be a pair [lower, upper]"

@@ -13,6 +13,7 @@ import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .calibration.space import CALIBRATION_KEYS, ParameterSpace, parse_calibration
 from .errors import StudyError, closest
 from .schema import Problems, Table, describe, read_toml
 from .wall import Wall
@@ -149,7 +150,12 @@ class SimulationSpec:
 
 @dataclass(frozen=True)
 class Study:
-    """A validated study. Build it with :func:`load_study`."""
+    """A validated study. Build it with :func:`load_study`.
+
+    ``calibration`` is the ``[calibration]`` table, validated at load against the study's wall and
+    sensors (a frozen :class:`~wallcal.calibration.ParameterSpace`: base values and absolute bounds
+    from this wall), or None when the study has none.
+    """
 
     name: str
     wall: Wall
@@ -160,7 +166,7 @@ class Study:
     period: PeriodSpec
     simulation: SimulationSpec
     description: str = ""
-    calibration: dict = field(default_factory=dict)
+    calibration: ParameterSpace | None = None
     path: Path | None = None
     raw: dict = field(default_factory=dict, compare=False, repr=False)
     sha256: str = ""
@@ -298,7 +304,9 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
     desc = (st.str("description", "") if st else "") or ""
 
     wt = top.table("wall", WALL_KEYS)
+    n_problems = len(problems)
     wall = parse_wall(wt, problems, base_dir) if wt else None
+    wall_clean = wall is not None and len(problems) == n_problems  # calibration parameters are checked against it
 
     dt_ = top.table("data", DATA_KEYS)
     data = None
@@ -480,10 +488,12 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             node_rule=smt.str("node_rule", "wallcal", choices=("wallcal", "energyplus")) or "wallcal",
             stiff_limit=smt.num("stiff_limit", 10.0, gt=0.0) or 10.0,
         )
-    calib = top.raw("calibration", {}) or {}
-    if top.has("calibration") and not isinstance(calib, dict):
-        problems.add("calibration", "must be a table")
-        calib = {}
+    calib = None
+    if top.has("calibration"):
+        ct = top.table("calibration", CALIBRATION_KEYS)
+        calib = parse_calibration(
+            ct, problems, wall if wall_clean else None, sensors, sensor_names=sensor_names, base_dir=base_dir
+        )
 
     if problems:
         raise StudyError(problems, source=source)

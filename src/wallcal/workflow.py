@@ -156,7 +156,7 @@ def _stage_grid(ctx: RunContext, d: Path, so: StageOutput):
     from .analysis.gridstudy import grid_study
 
     kw = {"time_steps": (60, 300, 900), "grid_constants": (1, 2, 3)} if ctx.quick else {}
-    targets = list(ctx.study.calibration.get("targets") or []) or None
+    targets = list(ctx.study.calibration.targets) if ctx.study.calibration else None
     res = grid_study(ctx.study, targets=targets, progress=ctx.progress, **kw)
     res.write_into(d)
     so.files += ["grid_study.csv", "rmse_vs_time_step.csv", "convergence.csv", "grid_study.json", "grid_study.png"]
@@ -195,7 +195,7 @@ def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
         so.status = "skipped"
         so.message = "the study has no [calibration] table"
         return
-    quick = ctx.quick and ctx.study.calibration.get("algorithm", "pso-hj") == "pso-hj"
+    quick = ctx.quick and ctx.study.calibration.algorithm == "pso-hj"
     res = calibrate(
         ctx.study, prepared=ctx.prepared, progress=ctx.progress, settings={"generations": 8} if quick else None
     )

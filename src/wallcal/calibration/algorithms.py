@@ -45,7 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import StudyError
+from ..errors import StudyError, closest
+from ..schema import Problems, check_number, describe
 
 PSO_HJ_DEFAULTS = {
     "particles": 16,
@@ -69,24 +70,73 @@ CMA_DEFAULTS = {"sigma0": 0.25, "maxfevals": 4000, "popsize": 0}
 LS_DEFAULTS = {"max_nfev": 100, "diff_step": 1e-6}
 
 
-def settings_for(algorithm: str, user: dict) -> dict:
-    """The algorithm's settings: documented defaults updated by the user's, unknown names rejected."""
-    defaults = {
-        "pso-hj": PSO_HJ_DEFAULTS,
-        "differential-evolution": DE_DEFAULTS,
-        "nelder-mead": NM_DEFAULTS,
-        "cma-es": CMA_DEFAULTS,
-        "least-squares": LS_DEFAULTS,
-    }[algorithm]
-    unknown = [k for k in user if k not in defaults]
-    if unknown:
-        from ..errors import closest
+#: each algorithm's settings and their defaults (``[calibration.settings]``)
+DEFAULT_SETTINGS = {
+    "pso-hj": PSO_HJ_DEFAULTS,
+    "differential-evolution": DE_DEFAULTS,
+    "nelder-mead": NM_DEFAULTS,
+    "cma-es": CMA_DEFAULTS,
+    "least-squares": LS_DEFAULTS,
+}
+#: whole-number settings that must be >= 1 (the others may be 0: no generations, no reductions, ...)
+_AT_LEAST_ONE = ("particles", "mesh_divisions", "mesh_divider")
+#: real-valued settings that may be 0 (the others must be > 0)
+_MAY_BE_ZERO = ("min_improvement", "tol", "xatol", "fatol", "cognitive", "social")
+TOPOLOGIES = ("vonneumann", "gbest")
 
-        raise StudyError(
-            [f"calibration.settings.{k}: unknown setting for {algorithm}; {closest(k, defaults)}" for k in unknown]
-        )
-    out = dict(defaults)
-    out.update(user)
+
+def check_settings(algorithm: str, user: dict, path: str, problems: Problems) -> dict:
+    """The user's settings of ``algorithm`` that are valid; every problem recorded at ``path.NAME``.
+
+    A setting must be one of the algorithm's (:data:`DEFAULT_SETTINGS`) and of its default's kind:
+    true/false, a whole number (>= 0; >= 1 for swarm and population sizes and mesh divisions), a
+    number (> 0, or >= 0 for tolerances and the swarm's attraction coefficients), ``topology`` one
+    of :data:`TOPOLOGIES`, ``mutation`` a pair [lower, upper] within [0, 2].
+    """
+    defaults = DEFAULT_SETTINGS[algorithm]
+    out = {}
+    for k, v in user.items():
+        at = f"{path}.{k}"
+        if k not in defaults:
+            problems.add(at, f"unknown setting for {algorithm}; {closest(k, defaults)}")
+            continue
+        d = defaults[k]
+        n0 = len(problems)
+        if isinstance(d, bool):
+            if not isinstance(v, bool):
+                problems.add(at, f"must be true or false, got {describe(v)}")
+        elif isinstance(d, str):
+            if v not in TOPOLOGIES:
+                problems.add(at, f"must be one of {', '.join(TOPOLOGIES)}, got {describe(v)}")
+        elif isinstance(d, list):
+            if not (isinstance(v, list) and len(v) == 2):
+                problems.add(at, f"must be a pair [lower, upper], got {describe(v)}")
+            else:
+                lo = check_number(v[0], at + "[0]", problems, ge=0.0, le=2.0)
+                hi = check_number(v[1], at + "[1]", problems, ge=0.0, le=2.0)
+                if lo is not None and hi is not None and hi < lo:
+                    problems.add(at, f"upper must not be below lower, got [{lo:g}, {hi:g}]")
+        elif isinstance(d, int):
+            at_least_one = k in _AT_LEAST_ONE or (k == "popsize" and d > 0)  # cma-es: popsize 0 is its default
+            v = check_number(v, at, problems, integer=True, ge=1.0 if at_least_one else 0.0)
+            v = None if v is None else int(v)
+        elif k in _MAY_BE_ZERO:
+            v = check_number(v, at, problems, ge=0.0)
+        else:
+            v = check_number(v, at, problems, gt=0.0, le=1.0 if k == "recombination" else None)
+        if len(problems) == n0:
+            out[k] = tuple(v) if isinstance(v, list) else v
+    return out
+
+
+def settings_for(algorithm: str, user: dict) -> dict:
+    """The algorithm's settings: documented defaults updated by the user's (checked as at load)."""
+    problems = Problems()
+    checked = check_settings(algorithm, user, "calibration.settings", problems)
+    if problems:
+        raise StudyError(problems)
+    out = dict(DEFAULT_SETTINGS[algorithm])
+    out.update(checked)
     return out
 
 

@@ -24,7 +24,7 @@ from ..simulation import Prepared, prepare, simulate
 from ..study import Study, dump_wall, load_wall
 from . import algorithms as alg
 from .objective import Evaluator
-from .space import ALGORITHMS, ParameterSpace, parse_space
+from .space import ALGORITHMS, ParameterSpace, space_of
 
 #: A target whose calibrated RMSE is this much below its noise floor is flagged (degC or W/m2 ...)
 FLOOR_MARGIN_ABS = 0.05
@@ -202,7 +202,7 @@ def calibrate(
     CalibrationResult
         ``status`` is ``"interrupted"`` when Ctrl-C stopped the run (the best point so far).
     """
-    space = space or parse_space(study)
+    space = space or space_of(study)
     algorithm = algorithm or space.algorithm
     if algorithm not in ALGORITHMS:
         from ..errors import closest
@@ -286,10 +286,7 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
     floors = {}
     notes = []
     if space.reference_wall:
-        ref_path = Path(space.reference_wall)
-        if not ref_path.is_absolute() and study.path is not None:
-            ref_path = study.path.parent / ref_path
-        ref_wall = load_wall(ref_path)
+        ref_wall = load_wall(space.reference_wall)  # resolved against the study's folder at load
         ref_res = simulate(study, prepared=prepared, wall=ref_wall)
         floors = ref_res.metrics.set_index("signal")["rmse"].to_dict()
     rm_opt = opt_res.metrics.set_index("signal")["rmse"]

@@ -2,21 +2,27 @@
 
 A parameter is one value shared by one or more layers (tied layers) for one
 property, or a probe's depth. Bounds are absolute or relative to the base
-value. Validation happens here, once: base value inside the bounds, physical
-values positive over the whole box, no layer or probe named twice for the same
-property, unknown names listed with the closest valid ones.
+value. The table is validated here, once, when the study is loaded
+(:func:`wallcal.load_study` calls :func:`parse_calibration` with the study's other keys):
+base value inside the bounds, physical values positive over the whole box, no layer or probe
+named twice for the same property, settings known to the algorithm, unknown names listed with
+the closest valid ones. The result, a frozen :class:`ParameterSpace`, is ``Study.calibration``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import StudyError, closest
 from ..grid import PropertyArrays
-from ..schema import Problems, Table, check_number
+from ..schema import Problems, Table, check_number, describe
 from ..wall import Wall
+from ..wallfile import load_wall
+from .algorithms import DEFAULT_SETTINGS, check_settings
 
 LAYER_PROPERTIES = (
     "conductivity",
@@ -68,15 +74,29 @@ class Parameter:
 
 @dataclass(frozen=True)
 class ParameterSpace:
-    """The parameters, the objective and the algorithm settings of a calibration."""
+    """The parameters, the objective and the algorithm settings of a calibration.
+
+    Attributes
+    ----------
+    parameters : tuple of Parameter
+        Resolved against the study's wall (base values and absolute bounds).
+    targets : tuple of str
+        Sensor names in the objective.
+    objective, algorithm : str
+    seed : int
+    settings : tuple of (str, value)
+        The study's ``[calibration.settings]`` (checked), as name-value pairs: ``dict(space.settings)``.
+    reference_wall : Path or None
+        The reference wall file (resolved against the study's folder).
+    """
 
     parameters: tuple[Parameter, ...]
     targets: tuple[str, ...]
     objective: str = "cse"
     algorithm: str = "pso-hj"
     seed: int = 1
-    settings: dict = field(default_factory=dict)
-    reference_wall: str | None = None
+    settings: tuple[tuple[str, Any], ...] = ()
+    reference_wall: Path | None = None
 
     @property
     def n(self) -> int:
@@ -167,169 +187,262 @@ class ParameterSpace:
         return wall
 
 
-def parse_space(study, raw: dict | None = None) -> ParameterSpace:
-    """Validate a study's ``[calibration]`` table.
+def space_of(study) -> ParameterSpace:
+    """The study's parameter space (validated when the study was loaded).
 
     Raises
     ------
     StudyError
-        Listing every problem with its key path.
+        When the study has no ``[calibration]`` table.
     """
-    raw = study.calibration if raw is None else raw
+    if study.calibration is None:
+        raise StudyError(
+            ["calibration: the study has no [calibration] table (see docs/calibration.md)"],
+            source=str(study.path) if study.path else None,
+        )
+    return study.calibration
+
+
+def parse_space(study, raw: dict | None = None) -> ParameterSpace:
+    """The study's parameter space, or another ``[calibration]`` table validated against the study.
+
+    Parameters
+    ----------
+    study : Study
+    raw : dict, optional
+        A ``[calibration]`` table (as parsed TOML) to validate against the study's wall and
+        sensors, e.g. a variant of the study's own. Without it, the study's own space (validated by
+        :func:`wallcal.load_study`) is returned.
+
+    Raises
+    ------
+    StudyError
+        Listing every problem with its key path; or the study has no ``[calibration]`` table.
+    """
+    if raw is None:
+        return space_of(study)
     problems = Problems()
     t = Table(raw, "calibration", problems, CALIBRATION_KEYS)
-    wall = study.wall
-    sensor_names = [s.name for s in study.sensors]
+    base_dir = Path(study.path).parent if study.path else None
+    space = parse_calibration(t, problems, study.wall, study.sensors, base_dir=base_dir)
+    if problems:
+        raise StudyError(problems, source=str(study.path) if study.path else None)
+    return space
+
+
+def parse_calibration(
+    t: Table,
+    problems: Problems,
+    wall: Wall | None,
+    sensors,
+    sensor_names=None,
+    base_dir: Path | None = None,
+) -> ParameterSpace | None:
+    """Validate the ``[calibration]`` table ``t`` of a study, recording every problem in ``problems``.
+
+    The study parser (:func:`wallcal.study.parse_study`) calls it with the study's other keys.
+
+    Parameters
+    ----------
+    t : Table
+        The ``calibration`` table.
+    problems : Problems
+    wall : Wall or None
+        The study's wall; None when it has problems of its own, in which case the parameters are
+        checked only for what does not depend on the wall (no follow-up problems).
+    sensors : sequence of SensorSpec
+        The study's valid sensors (accuracies, for ``rmse_accuracy``).
+    sensor_names : collection of str, optional
+        Every sensor name the study declares (also those with problems of their own); default
+        the names of ``sensors``.
+    base_dir : Path, optional
+        The study's folder (``reference_wall`` is relative to it).
+
+    Returns
+    -------
+    ParameterSpace or None
+        None when there were problems.
+    """
+    n_problems = len(problems)
+    sensors = tuple(sensors)
+    by_name = {s.name: s for s in sensors}
+    declared = list(dict.fromkeys(sensor_names if sensor_names is not None else by_name))
     targets_raw = t.raw("targets", None)
     targets: list[str] = []
     if targets_raw is None:
-        targets = [s.name for s in study.sensors if s.quantity == "temperature"]
+        targets = [s.name for s in sensors if s.quantity == "temperature"]
     elif not isinstance(targets_raw, list) or not all(isinstance(x, str) for x in targets_raw) or not targets_raw:
-        problems.add("calibration.targets", "must be a non-empty list of sensor names")
+        problems.add(t.at("targets"), "must be a non-empty list of sensor names")
     else:
         for i, name in enumerate(targets_raw):
-            if name not in sensor_names:
-                problems.add(f"calibration.targets[{i}]", f"{name!r} is not a sensor; {closest(name, sensor_names)}")
+            if name not in declared:
+                problems.add(f"{t.at('targets')}[{i}]", f"{name!r} is not a sensor; {closest(name, declared)}")
             elif name in targets:
-                problems.add(f"calibration.targets[{i}]", f"{name!r} is listed twice")
+                problems.add(f"{t.at('targets')}[{i}]", f"{name!r} is listed twice")
             else:
                 targets.append(name)
     objective = t.str("objective", "cse", choices=OBJECTIVES)
     algorithm = t.str("algorithm", "pso-hj", choices=ALGORITHMS)
     seed = t.num("seed", 1, integer=True, ge=0)
-    settings = t.raw("settings", {}) or {}
-    if not isinstance(settings, dict):
-        problems.add("calibration.settings", "must be a table")
-        settings = {}
+    settings: dict = {}
+    st = t.table("settings", tuple(DEFAULT_SETTINGS.get(algorithm, ())), required=False) if algorithm else None
+    if st is not None and st.ok:
+        # unknown names are reported by check_settings (with the algorithm's name), not twice by the table
+        problems[:] = [p for p in problems if not (p.startswith(st.path + ".") and "unknown key" in p)]
+        settings = check_settings(algorithm, st.data, st.path, problems)
     if objective == "rmse_accuracy":
         for name in targets:
-            s = study.sensor(name)
-            if s.accuracy is None and s.accuracy_relative is None:
-                problems.add("calibration.objective", f"rmse_accuracy needs an accuracy for sensor {name!r}")
+            s = by_name.get(name)
+            if s is not None and s.accuracy is None and s.accuracy_relative is None:
+                problems.add(t.at("objective"), f"rmse_accuracy needs an accuracy for sensor {name!r}")
     ref = t.str("reference_wall", None)
+    ref_path = None
+    if ref is not None:
+        ref_path = (base_dir / ref) if base_dir else Path(ref)
+        try:
+            load_wall(ref_path)
+        except StudyError as exc:
+            for p in exc.problems:
+                problems.add(f"{t.at('reference_wall')} ({ref_path})", p)
 
-    layer_ids = [layer.id for layer in wall.layers]
-    probe_names = [p.name for p in wall.probes]
     params: list[Parameter] = []
-    used: set[tuple[str, str]] = set()
-    for pt in t.tables("parameters", PARAMETER_KEYS):
-        has_layers, has_probe = pt.has("layers"), pt.has("probe")
-        if has_layers == has_probe:
-            problems.add(pt.path, 'give either layers = [...] or probe = "..."')
+    used: set[tuple[str, str]] = set()  # (layer id or "probe:NAME", property): no property is a parameter twice
+    for pt in t.tables("parameters", PARAMETER_KEYS, required=False):
+        got = _parse_parameter(pt, problems, wall)
+        if got is None:
             continue
-        prop = pt.str("property", choices=PROBE_PROPERTIES if has_probe else LAYER_PROPERTIES)
-        kind = pt.str("bounds_kind", "relative" if has_layers else "absolute", choices=("relative", "absolute"))
-        bounds = pt.raw("bounds")
-        if not (isinstance(bounds, list) and len(bounds) == 2):
-            problems.add(pt.at("bounds"), "must be a pair [lower, upper]")
-            continue
-        lo = check_number(bounds[0], pt.at("bounds") + "[0]", problems)
-        hi = check_number(bounds[1], pt.at("bounds") + "[1]", problems)
-        if prop is None or kind is None or lo is None or hi is None:
-            continue
-        if not hi > lo:
-            problems.add(pt.at("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
-            continue
-        if has_probe:
-            name = pt.raw("probe")
-            if not isinstance(name, str) or name not in probe_names:
-                problems.add(pt.at("probe"), f"{name!r} is not a probe of the wall; {closest(str(name), probe_names)}")
-                continue
-            if ("probe:" + name, prop) in used:
-                problems.add(pt.at("probe"), f"probe {name!r} {prop} is already a parameter")
-                continue
-            used.add(("probe:" + name, prop))
-            base = wall.probe(name).depth
-            idx: tuple[int, ...] = ()
-            pname = f"depth[{name}]"
-        else:
-            ids = pt.raw("layers")
-            if not isinstance(ids, list) or not ids:
-                problems.add(pt.at("layers"), "must be a non-empty list of layer ids")
-                continue
-            ids = [str(i) if isinstance(i, int) and not isinstance(i, bool) else i for i in ids]
-            bad = False
-            idx_list = []
-            for k, lid in enumerate(ids):
-                if not isinstance(lid, str) or lid not in layer_ids:
-                    problems.add(
-                        f"{pt.at('layers')}[{k}]", f"{lid!r} is not a layer id; {closest(str(lid), layer_ids)}"
-                    )
-                    bad = True
-                    continue
-                if (lid, prop) in used:
-                    problems.add(f"{pt.at('layers')}[{k}]", f"layer {lid!r} {prop} is already a parameter")
-                    bad = True
-                    continue
-                used.add((lid, prop))
-                layer = wall.layers[layer_ids.index(lid)]
-                if layer.is_massless and prop in (
-                    "conductivity",
-                    "density",
-                    "specific_heat",
-                    "conductivity_temperature_coefficient",
-                ):
-                    problems.add(f"{pt.at('layers')}[{k}]", f"layer {lid!r} is a no-mass layer: it has no {prop}")
-                    bad = True
-                    continue
-                if prop == "contact_resistance" and layer_ids.index(lid) == len(layer_ids) - 1:
-                    problems.add(
-                        f"{pt.at('layers')}[{k}]", "the innermost layer has no next layer for a contact resistance"
-                    )
-                    bad = True
-                    continue
-                idx_list.append(layer_ids.index(lid))
-            if bad:
-                continue
-            idx = tuple(idx_list)
-            values = [getattr(wall.layers[i], prop) or 0.0 for i in idx]
-            if len(set(values)) > 1:
-                problems.add(
-                    pt.at("layers"),
-                    f"tied layers must share a base {prop}; got "
-                    + ", ".join(f"{wall.layers[i].id}: {v:g}" for i, v in zip(idx, values, strict=True)),
-                )
-                continue
-            base = float(values[0])
-            pname = f"{prop}[{','.join(wall.layers[i].id for i in idx)}]"
-        if kind == "relative":
-            if base == 0.0:
-                problems.add(
-                    pt.at("bounds_kind"),
-                    f'relative bounds need a non-zero base value ({pname} is 0): use bounds_kind = "absolute"',
-                )
-                continue
-            lower, upper = base * (1 + lo), base * (1 + hi)
-            lower, upper = min(lower, upper), max(lower, upper)
-        else:
-            lower, upper = lo, hi
-        if not lower <= base <= upper:
-            problems.add(
-                pt.at("bounds"), f"the base value {base:g} of {pname} is outside the bounds [{lower:g}, {upper:g}]"
+        p, keys = got
+        twice = [(k, key) for k, key in enumerate(keys) if (key, p.property) in used]
+        for k, key in twice:
+            at, what = (
+                (pt.at("probe"), f"probe {p.probe!r}") if p.probe else (f"{pt.at('layers')}[{k}]", f"layer {key!r}")
             )
-            continue
-        if prop in _POSITIVE and lower <= 0:
-            problems.add(pt.at("bounds"), f"{pname} must stay > 0 over the whole box; lower bound is {lower:g}")
-            continue
-        if prop in _NONNEGATIVE and lower < 0:
-            problems.add(pt.at("bounds"), f"{pname} must stay >= 0 over the whole box; lower bound is {lower:g}")
-            continue
-        if prop == "depth" and upper > wall.thickness:
-            problems.add(pt.at("bounds"), f"{pname} upper bound {upper:g} m is beyond the wall ({wall.thickness:g} m)")
-            continue
-        params.append(Parameter(pname, prop, idx, pt.raw("probe") if has_probe else None, base, lower, upper))
-    if t.has("parameters") and not params and not problems:
-        problems.add("calibration.parameters", "no parameter")
+            problems.add(at, f"{what} {p.property} is already a parameter")
+        used.update((key, p.property) for key in keys)
+        if not twice:
+            params.append(p)
     if not t.has("parameters"):
-        problems.add("calibration.parameters", "required: at least one [[calibration.parameters]]")
-    if problems:
-        raise StudyError(problems, source=str(study.path) if study.path else None)
+        problems.add(t.at("parameters"), "required: at least one [[calibration.parameters]]")
+    elif isinstance(t.raw("parameters"), list) and not t.raw("parameters"):
+        problems.add(t.at("parameters"), "list at least one parameter")
+    if len(problems) > n_problems or wall is None:
+        return None
     return ParameterSpace(
         parameters=tuple(params),
         targets=tuple(targets),
         objective=objective or "cse",
         algorithm=algorithm or "pso-hj",
         seed=int(seed if seed is not None else 1),
-        settings=dict(settings),
-        reference_wall=ref,
+        settings=tuple(settings.items()),
+        reference_wall=ref_path,
     )
+
+
+def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None):
+    """One ``[[calibration.parameters]]`` table: (Parameter, (layer ids or probe)) or None."""
+    has_layers, has_probe = pt.has("layers"), pt.has("probe")
+    if has_layers == has_probe:
+        if pt.ok:
+            problems.add(pt.path, 'give either layers = [...] or probe = "..."')
+        return None
+    prop = pt.str("property", choices=PROBE_PROPERTIES if has_probe else LAYER_PROPERTIES)
+    kind = pt.str("bounds_kind", "relative" if has_layers else "absolute", choices=("relative", "absolute"))
+    bounds = pt.raw("bounds")
+    lo = hi = None
+    if not (isinstance(bounds, list) and len(bounds) == 2):
+        problems.add(pt.at("bounds"), "must be a pair [lower, upper]" + ("" if pt.has("bounds") else "; missing"))
+    else:
+        lo = check_number(bounds[0], pt.at("bounds") + "[0]", problems)
+        hi = check_number(bounds[1], pt.at("bounds") + "[1]", problems)
+        if lo is not None and hi is not None and not hi > lo:
+            problems.add(pt.at("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
+            lo = hi = None
+    if has_probe:
+        name = pt.raw("probe")
+        if not isinstance(name, str):
+            problems.add(pt.at("probe"), f"must be a probe name (a string), got {describe(name)}")
+            return None
+        keys: tuple[str, ...] = ("probe:" + name,)
+    else:
+        ids = pt.raw("layers")
+        if not isinstance(ids, list) or not ids:
+            problems.add(pt.at("layers"), "must be a non-empty list of layer ids")
+            return None
+        ids = [str(i) if isinstance(i, int) and not isinstance(i, bool) else i for i in ids]
+        bad = [k for k, lid in enumerate(ids) if not isinstance(lid, str)]
+        for k in bad:
+            problems.add(f"{pt.at('layers')}[{k}]", f"must be a layer id (a string), got {describe(ids[k])}")
+        if bad:
+            return None
+        keys = tuple(ids)
+    if wall is None or prop is None or kind is None or lo is None or hi is None:
+        return None
+
+    # ------------------------------------------------------------ checks against the wall
+    if has_probe:
+        probe_names = [p.name for p in wall.probes]
+        if name not in probe_names:
+            problems.add(pt.at("probe"), f"{name!r} is not a probe of the wall; {closest(name, probe_names)}")
+            return None
+        base = wall.probe(name).depth
+        idx: tuple[int, ...] = ()
+        pname = f"depth[{name}]"
+    else:
+        layer_ids = [layer.id for layer in wall.layers]
+        idx_list = []
+        n0 = len(problems)
+        for k, lid in enumerate(keys):
+            at = f"{pt.at('layers')}[{k}]"
+            if lid not in layer_ids:
+                problems.add(at, f"{lid!r} is not a layer id; {closest(lid, layer_ids)}")
+                continue
+            if lid in keys[:k]:
+                problems.add(at, f"layer {lid!r} {prop} is already a parameter")
+                continue
+            i = layer_ids.index(lid)
+            if wall.layers[i].is_massless and prop != "contact_resistance":
+                problems.add(at, f"layer {lid!r} is a no-mass layer: it has no {prop}")
+                continue
+            if prop == "contact_resistance" and i == len(layer_ids) - 1:
+                problems.add(at, "the innermost layer has no next layer for a contact resistance")
+                continue
+            idx_list.append(i)
+        if len(problems) > n0:
+            return None
+        idx = tuple(idx_list)
+        values = [getattr(wall.layers[i], prop) or 0.0 for i in idx]
+        if len(set(values)) > 1:
+            problems.add(
+                pt.at("layers"),
+                f"tied layers must share a base {prop}; got "
+                + ", ".join(f"{wall.layers[i].id}: {v:g}" for i, v in zip(idx, values, strict=True)),
+            )
+            return None
+        base = float(values[0])
+        pname = f"{prop}[{','.join(wall.layers[i].id for i in idx)}]"
+    if kind == "relative":
+        if base == 0.0:
+            problems.add(
+                pt.at("bounds_kind"),
+                f'relative bounds need a non-zero base value ({pname} is 0): use bounds_kind = "absolute"',
+            )
+            return None
+        lower, upper = base * (1 + lo), base * (1 + hi)
+        lower, upper = min(lower, upper), max(lower, upper)
+    else:
+        lower, upper = lo, hi
+    if not lower <= base <= upper:
+        problems.add(
+            pt.at("bounds"), f"the base value {base:g} of {pname} is outside the bounds [{lower:g}, {upper:g}]"
+        )
+        return None
+    if prop in _POSITIVE and lower <= 0:
+        problems.add(pt.at("bounds"), f"{pname} must stay > 0 over the whole box; lower bound is {lower:g}")
+        return None
+    if prop in _NONNEGATIVE and lower < 0:
+        problems.add(pt.at("bounds"), f"{pname} must stay >= 0 over the whole box; lower bound is {lower:g}")
+        return None
+    if prop == "depth" and upper > wall.thickness:
+        problems.add(pt.at("bounds"), f"{pname} upper bound {upper:g} m is beyond the wall ({wall.thickness:g} m)")
+        return None
+    return Parameter(pname, prop, idx, name if has_probe else None, base, lower, upper), keys

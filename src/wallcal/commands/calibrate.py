@@ -113,7 +113,11 @@ def run_crosscheck(args) -> int:
     study = load_study(args.study)
     engines = [e.strip() for e in args.engines.split(",") if e.strip()]
     rows = []
-    targets = study.calibration.get("targets") or [s.name for s in study.sensors if s.quantity == "temperature"]
+    targets = (
+        study.calibration.targets
+        if study.calibration
+        else [s.name for s in study.sensors if s.quantity == "temperature"]
+    )
     for wpath in args.walls:
         wall = load_wall(wpath)
         if not wall.probes:

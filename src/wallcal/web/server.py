@@ -3,7 +3,7 @@
 A small standard-library HTTP server (bound to 127.0.0.1 by default) that serves
 one page (``page.html``, no external assets: it works offline) and three JSON
 end points, all built on wallcal's public API only (``load_study``, ``prepare``,
-``simulate``, ``Wall.replace_layer``, ``dump_wall``, ``calibration.parse_space``):
+``simulate``, ``Wall.replace_layer``, ``dump_wall``, ``Study.calibration``):
 
 - ``GET /api/study``: the wall, the calibration parameters, the sensors, the
   measured series and the base-case simulation;
@@ -46,25 +46,19 @@ class ManualCalibration:
         self.base = wallcal.simulate(self.study, prepared=self.prepared)
         self.lock = threading.Lock()
         self.params = []
-        if self.study.calibration:
-            from wallcal.calibration import parse_space
-
-            try:
-                space = parse_space(self.study)
-                self.params = [
-                    {
-                        "name": p.name,
-                        "property": p.property,
-                        "layers": [self.study.wall.layers[i].id for i in p.layers],
-                        "probe": p.probe,
-                        "base": p.base,
-                        "lower": p.lower,
-                        "upper": p.upper,
-                    }
-                    for p in space.parameters
-                ]
-            except WallcalError:
-                self.params = []
+        if self.study.calibration:  # validated by load_study
+            self.params = [
+                {
+                    "name": p.name,
+                    "property": p.property,
+                    "layers": [self.study.wall.layers[i].id for i in p.layers],
+                    "probe": p.probe,
+                    "base": p.base,
+                    "lower": p.lower,
+                    "upper": p.upper,
+                }
+                for p in self.study.calibration.parameters
+            ]
 
     # ------------------------------------------------------------------ API
     def state(self) -> dict:
