@@ -157,3 +157,72 @@ def test_too_small_time_step_is_a_clear_error(example_study):
 
     with pytest.raises(StudyError, match="simulation.time_step: 0.001 s gives"):
         prepare(example_study, time_step=0.001)
+
+
+# ---------------------------------------------------------------------------- the study keeps its loaded data
+def _age(path, seconds):
+    """Set the file's modification time ``seconds`` in the past."""
+    import os
+    import time
+
+    t = time.time_ns() - int(seconds * 1e9)
+    os.utime(path, ns=(t, t))
+
+
+@pytest.fixture()
+def counted_reads(monkeypatch):
+    import wallcal.data as data_mod
+
+    reads = []
+    read_table = data_mod.read_table
+    monkeypatch.setattr(data_mod, "read_table", lambda *a, **k: reads.append(a[0]) or read_table(*a, **k))
+    return reads
+
+
+def test_loaded_data_are_kept_until_the_file_changes(tmp_path, measured, counted_reads):
+    import dataclasses
+
+    s = study_with(tmp_path, measured)
+    _age(s.data.file, 60)
+    m1 = load_measurements(s)
+    m2 = load_measurements(s)
+    assert len(counted_reads) == 1  # the second call did not read the file
+    pd.testing.assert_frame_equal(m1.frame, m2.frame)
+    # a study with other sensor keys (here an offset) maps the data again
+    s_off = s.replace(sensors=(dataclasses.replace(s.sensors[0], offset=1.0),) + s.sensors[1:])
+    assert np.allclose(load_measurements(s_off).frame["T3A"], m1.frame["T3A"] + 1.0, equal_nan=True)
+    assert len(counted_reads) == 2
+    # the file changes (same size, same inode): it is read again
+    changed = measured.copy()
+    changed["T3A"] = changed["T3A"] + 2.0
+    changed.to_csv(s.data.file, index=False)
+    _age(s.data.file, 30)
+    m3 = load_measurements(s)
+    assert np.allclose(m3.frame["T3A"], m1.frame["T3A"] + 2.0, equal_nan=True)
+    assert len(counted_reads) == 3
+    load_measurements(s)
+    assert len(counted_reads) == 3
+
+
+def test_a_file_written_just_now_is_not_kept(tmp_path, measured, counted_reads):
+    """Two writes within one tick of a coarse file-system clock look alike: such a file is read every time."""
+    s = study_with(tmp_path, measured)
+    load_measurements(s)
+    load_measurements(s)
+    assert len(counted_reads) == 2
+
+
+def test_kept_data_cannot_be_changed_by_a_caller(tmp_path, measured):
+    s = study_with(tmp_path, measured)
+    _age(s.data.file, 60)
+    m1 = load_measurements(s)
+    before = m1.frame.copy()
+    m1.frame.iloc[0, 0] = 999.0
+    m1.frame["T3A"] = 0.0
+    m1.spikes.loc[len(m1.spikes)] = ["x", pd.Timestamp("2025-01-01"), 1.0, 1.0]
+    m1.notes.append("changed")
+    with pytest.raises(ValueError, match="read-only"):
+        m1.frame["T2A"].to_numpy()[0] = 5.0
+    m2 = load_measurements(s)
+    pd.testing.assert_frame_equal(m2.frame, before)
+    assert m2.notes == [] and "x" not in set(m2.spikes["signal"])

@@ -7,8 +7,13 @@ naive in local standard time.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import hashlib
+import os
+import threading
+import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -394,9 +399,57 @@ def data_sha256(study: Study) -> str:
     return h.hexdigest()
 
 
+# the measurements of the last few studies, keyed by what they depend on (see load_measurements)
+_LOADED: OrderedDict[tuple, Measurements] = OrderedDict()
+_LOADED_MAX = 4
+_LOADED_LOCK = threading.Lock()
+#: a file modified less than this before it is read may change again within the same time stamp
+#: (coarse file-system clocks): its measurements are not kept
+_RACY_NS = 2_000_000_000
+
+
+def _loaded_key(study: Study) -> tuple | None:
+    """What a study's measurements depend on: its data, boundary, sensor and period keys, and each data
+    file's path, size, inode and modification time [ns]. None when a file cannot be read (the loader
+    then says why)."""
+    try:
+        files = tuple(
+            (os.path.abspath(p), st.st_size, st.st_ino, st.st_mtime_ns)
+            for p in study.data.paths
+            for st in (os.stat(p),)
+        )
+    except OSError:
+        return None
+    return (study.data, study.exterior, study.interior, study.sensors, study.period, files)
+
+
+def _settled(key: tuple, now_ns: int) -> bool:
+    """Every data file of ``key`` was last modified well before ``now_ns`` (see _RACY_NS)."""
+    return all(mtime < now_ns - _RACY_NS for *_, mtime in key[-1])
+
+
+def _view(m: Measurements) -> Measurements:
+    """A copy of ``m`` sharing its data: pandas' copy-on-write keeps the cached frames unchanged when
+    the copy's are written to, and their ``to_numpy()`` arrays are read-only."""
+    return dataclasses.replace(
+        m,
+        frame=m.frame.copy(deep=False),
+        spikes=m.spikes.copy(deep=False),
+        bridged_gaps=m.bridged_gaps.copy(deep=False),
+        notes=list(m.notes),
+    )
+
+
 def load_measurements(study: Study) -> Measurements:
     """Read the study's data file (or its ``[[data.files]]``, joined on their timestamps) and map it onto
     the study.
+
+    The result is kept: a later call for the same data, boundary, sensor and period keys returns it
+    without reading the files again, as long as every data file keeps its path, size, inode and
+    modification time. Data files modified less than 2 s before they are read are not kept (they
+    might change again within one tick of a coarse file-system clock, unnoticed). Each call returns its
+    own copy of the frames, sharing their data (copy-on-write): writing to them leaves the kept ones
+    unchanged.
 
     Raises
     ------
@@ -405,6 +458,25 @@ def load_measurements(study: Study) -> Measurements:
         duplicate or non-increasing timestamps, a period outside the data, a gap in a
         boundary series longer than ``data.max_gap``.
     """
+    key = _loaded_key(study)  # before reading: a file changed while it is read is read again next time
+    now = time.time_ns()
+    if key is not None:
+        with _LOADED_LOCK:
+            m = _LOADED.get(key)
+            if m is not None:
+                _LOADED.move_to_end(key)
+        if m is not None:
+            return _view(m)
+    m = _read_measurements(study)
+    if key is not None and _settled(key, now):
+        with _LOADED_LOCK:
+            _LOADED[key] = m
+            while len(_LOADED) > _LOADED_MAX:
+                _LOADED.popitem(last=False)
+    return _view(m)
+
+
+def _read_measurements(study: Study) -> Measurements:
     spec = study.data
     notes: list[str] = []
     if spec.files:
