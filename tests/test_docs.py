@@ -3,7 +3,7 @@
 import re
 
 from conftest import REPO
-from wallcal import study
+from wallcal import study, wallfile
 
 
 def test_every_study_key_is_documented():
@@ -11,9 +11,9 @@ def test_every_study_key_is_documented():
     documented = set(re.findall(r"`([a-z_]+)`", doc))
     tuples = [
         study.STUDY_KEYS,
-        study.WALL_KEYS,
-        study.LAYER_KEYS,
-        study.PROBE_KEYS,
+        wallfile.WALL_KEYS,
+        wallfile.LAYER_KEYS,
+        wallfile.PROBE_KEYS,
         study.DATA_KEYS,
         study.BOUNDARY_KEYS,
         study.SENSOR_KEYS,

@@ -1,1 +1,1 @@
-"""CLI commands, one module each; shared formatting helpers in :mod:`._format`."""
+"""CLI commands, one module each; tables are rendered by :mod:`wallcal.formatting`."""

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ._format import table
+from ..formatting import table
 
 
 def _floats(text: str, what: str) -> list[float]:

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import StudyError
-from ._format import table
+from ..formatting import table
 
 DIRECTIONS = ("horizontal", "upward", "downward")
 

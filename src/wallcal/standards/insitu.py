@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataError, StudyError
+from ..formatting import fmt
 from . import iso6946, iso9869
 
 
@@ -263,7 +264,7 @@ def _crit_value(c, limit: bool = False):
         return float("nan")
     if c.name in ("last_24h", "first_last_two_thirds", "storage"):
         return f"{100 * v:.1f} %" if np.isfinite(v) else "inf"
-    return f"{_fmt(float(v))} h"
+    return f"{fmt(float(v))} h"
 
 
 def _json_num(v):
@@ -306,9 +307,3 @@ def _figure(path: Path, hours: np.ndarray, res, sensor: str, face: str, title: s
         fig.savefig(path, dpi=120)
     finally:
         plt.close(fig)
-
-
-def _fmt(v: float) -> str:
-    from ..commands._format import fmt
-
-    return fmt(v)

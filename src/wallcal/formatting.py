@@ -1,4 +1,7 @@
-"""Plain-text tables for the terminal."""
+"""Plain-text numbers and tables (the terminal's tables, the text of verdicts and summaries).
+
+A library module: the CLI (``commands/``) and library modules alike use it.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +11,8 @@ import pandas as pd
 
 
 def fmt(v, digits: int = 4) -> str:
+    """A number as a table shows it: ``digits`` significant digits, scientific notation when tiny or
+    huge, ``-`` for NaN, ``yes``/``no`` for booleans."""
     if isinstance(v, bool):
         return "yes" if v else "no"
     if isinstance(v, int):
