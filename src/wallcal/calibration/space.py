@@ -22,7 +22,7 @@ from ..grid import PropertyArrays
 from ..schema import Problems, Table, check_number, describe
 from ..wall import Wall
 from ..wallfile import load_wall
-from .algorithms import DEFAULT_SETTINGS, check_settings
+from .algorithms import check_settings
 
 LAYER_PROPERTIES = (
     "conductivity",
@@ -263,6 +263,8 @@ def parse_calibration(
     ParameterSpace or None
         None when there were problems.
     """
+    if not t.ok:  # not a table: Table said so
+        return None
     n_problems = len(problems)
     sensors = tuple(sensors)
     by_name = {s.name: s for s in sensors}
@@ -285,11 +287,11 @@ def parse_calibration(
     algorithm = t.str("algorithm", "pso-hj", choices=ALGORITHMS)
     seed = t.num("seed", 1, integer=True, ge=0)
     settings: dict = {}
-    st = t.table("settings", tuple(DEFAULT_SETTINGS.get(algorithm, ())), required=False) if algorithm else None
-    if st is not None and st.ok:
-        # unknown names are reported by check_settings (with the algorithm's name), not twice by the table
-        problems[:] = [p for p in problems if not (p.startswith(st.path + ".") and "unknown key" in p)]
-        settings = check_settings(algorithm, st.data, st.path, problems)
+    raw_settings = t.raw("settings", None)
+    if raw_settings is not None and not isinstance(raw_settings, dict):
+        problems.add(t.at("settings"), f"must be a table, got {describe(raw_settings)}")
+    elif raw_settings is not None and algorithm is not None:
+        settings = check_settings(algorithm, raw_settings, t.at("settings"), problems)
     if objective == "rmse_accuracy":
         for name in targets:
             s = by_name.get(name)
