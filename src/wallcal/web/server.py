@@ -195,7 +195,7 @@ class ManualCalibration:
             raise WallcalError(f"body: unknown key {unknown[0]!r} (expected layers, probes, file)")
         wall = self.study.wall
         layers = {layer.id: layer for layer in wall.layers}
-        for lid, props in _object(body.get("layers") or {}, "layers").items():
+        for lid, props in _object({} if body.get("layers") is None else body["layers"], "layers").items():
             if lid not in layers:
                 raise WallcalError(f"layers: {lid[:40]!r} is not a layer id (the wall has {', '.join(layers)})")
             layer = layers[lid]
@@ -215,7 +215,7 @@ class ManualCalibration:
                 changes[prop] = v
             wall = wall.replace_layer(lid, **changes)
         probes = {p.name for p in wall.probes}
-        for name, depth in _object(body.get("probes") or {}, "probes").items():
+        for name, depth in _object({} if body.get("probes") is None else body["probes"], "probes").items():
             if name not in probes:
                 raise WallcalError(f"probes: {name[:40]!r} is not a probe of the wall")
             depth = _number(depth, f"probes.{name}")
@@ -353,9 +353,6 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
     routes["/api/save"] = ("POST", app.save)
 
     class Handler(BaseHTTPRequestHandler):
-        server_version = "wallcal"
-        sys_version = ""
-
         def setup(self):
             self.timeout = timeout  # socket time-out of this connection (read by StreamRequestHandler.setup)
             super().setup()
@@ -365,9 +362,10 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
             pass
 
         # ---------------------------------------------------------------- answering
+        def version_string(self):
+            return "wallcal"
+
         def _send(self, code: int, body: bytes, ctype: str, extra: dict | None = None):
-            if not self._body_read:
-                self._discard_body()
             self.send_response(code)
             self.send_header("Content-Type", ctype)
             self.send_header("Content-Length", str(len(body)))
@@ -382,19 +380,29 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
             if self.command != "HEAD":
                 self.wfile.write(body)
             self.close_connection = True
+            announced = self.headers.get("Content-Length", "").strip() not in ("", "0")
+            if not self._body_read and (announced or self.headers.get("Transfer-Encoding")):
+                self._linger()
 
         def _json(self, code: int, obj):
             self._send(code, json.dumps(obj, allow_nan=False).encode(), "application/json")
 
-        def _discard_body(self):
-            """Read a small unread body before answering, so that closing the socket does not reset it."""
-            self._body_read = True
-            n = self.headers.get("Content-Length", "") if self.headers else ""
-            if n.isdigit() and 0 < int(n) <= MAX_BODY:
-                try:
-                    self._read(int(n))
-                except (OSError, _Refused):
-                    pass
+        def _linger(self):
+            """After answering a request whose body was not read: stop sending, then read and drop what the
+            client still sends (at most 2 s, 16 MiB), so that closing the socket does not reset the
+            connection before the client has read the answer."""
+            try:
+                self.wfile.flush()
+                self.connection.shutdown(socket.SHUT_WR)
+                self.connection.settimeout(0.5)
+                deadline, dropped = time.monotonic() + 2.0, 0
+                while time.monotonic() < deadline and dropped < 16 << 20:
+                    chunk = self.connection.recv(1 << 16)
+                    if not chunk:
+                        break
+                    dropped += len(chunk)
+            except OSError:
+                pass
 
         def _read(self, n: int) -> bytes:
             """Exactly ``n`` body bytes, within the connection's time limit (408 otherwise)."""
@@ -420,7 +428,7 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
             if not host:
                 raise _Refused(403, "refused: no Host header")
             name, _, port = host.rpartition(":") if not host.endswith("]") else (host, "", "")
-            if not name or (port and not port.isdigit()):
+            if not name or (port and not re.fullmatch(r"[0-9]{1,5}", port)):
                 name, port = host, ""
             if port and int(port) != self.server.server_address[1]:
                 raise _Refused(403, f"refused: Host {host!r} names another port")
@@ -438,7 +446,7 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
             given = self.headers.get(TOKEN_HEADER)
             if not given:
                 raise _Refused(
-                    403, f"refused: no {TOKEN_HEADER} header; open the page from the URL wallcal serve printed"
+                    403, f"refused: no token (header {TOKEN_HEADER}); open the page from the URL wallcal serve printed"
                 )
             if not hmac.compare_digest(given.encode("utf-8", "surrogateescape"), self.server.token.encode()):
                 raise _Refused(403, "refused: wrong token; open the page from the URL this wallcal serve printed")
@@ -452,13 +460,13 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
             n = (self.headers.get("Content-Length") or "").strip()
             if not n:
                 raise _Refused(411, "a Content-Length header is required")
-            if not n.isdigit():
+            if not re.fullmatch(r"[0-9]{1,15}", n):
                 raise _Refused(400, f"bad Content-Length {n[:40]!r}")
             if int(n) > MAX_BODY:
-                self._body_read = True  # not worth reading
                 raise _Refused(413, f"the body ({int(n)} bytes) is larger than the {MAX_BODY} bytes the API accepts")
+            raw = self._read(int(n))
             self._body_read = True
-            return parse_body(self._read(int(n)))
+            return parse_body(raw)
 
         # ---------------------------------------------------------------- dispatch
         def _handle(self):
