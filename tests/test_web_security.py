@@ -585,3 +585,21 @@ def test_a_token_is_drawn_at_every_start(live, monkeypatch):
         box["h"].shutdown()
         th.join(10)
     assert urls[0].split("token=")[1] != urls[1].split("token=")[1] != httpd.token
+
+
+@pytest.mark.parametrize("study", ["campaign_a", "trh"])
+def test_the_pages_sliders_stay_inside_the_accepted_ranges(study):
+    """The page's sliders span 0.5x .. 2x of each value: for the bundled walls every value they can
+    send is accepted (the limits refuse only the absurd)."""
+    import wallcal
+    from wallcal.web.server import LIMITS
+
+    wall = wallcal.load_study(EXAMPLE.parent.parent / study / "study.toml").wall
+    for layer in wall.layers:
+        if layer.is_massless:
+            continue
+        for prop in ("conductivity", "density", "specific_heat"):
+            v = getattr(layer, prop)
+            if v is not None:
+                lo, hi, _ = LIMITS[prop]
+                assert lo <= 0.5 * v and 2 * v <= hi, (study, layer.id, prop, v)

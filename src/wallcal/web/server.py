@@ -54,15 +54,16 @@ from wallcal.errors import WallcalError
 
 PAGE = Path(__file__).with_name("page.html")
 EDITABLE = ("conductivity", "density", "specific_heat", "conductivity_temperature_coefficient", "contact_resistance")
-#: The range the page accepts for each editable property (SI units): wide enough for any building material
-#: (vacuum panels to metals, aerogels to lead, phase-change materials' apparent heat capacity), and the same
-#: temperature-coefficient bounds as the study file; anything outside is refused as absurd.
+#: The range the page accepts for each editable property (SI units): any building material with the sliders'
+#: factor-2 margin (vacuum panels and still air to metals; an air layer's 1.2 kg/m3 to lead; phase-change
+#: materials' apparent heat capacity), and the study file's temperature-coefficient bounds. Anything outside
+#: is refused as absurd.
 LIMITS = {
-    "conductivity": (1e-3, 1e3, "W/(m K)"),
-    "density": (1.0, 3e4, "kg/m3"),
-    "specific_heat": (10.0, 1e5, "J/(kg K)"),
+    "conductivity": (1e-4, 1e4, "W/(m K)"),
+    "density": (0.01, 1e5, "kg/m3"),
+    "specific_heat": (1.0, 1e6, "J/(kg K)"),
     "conductivity_temperature_coefficient": (-0.2, 0.2, "1/K"),
-    "contact_resistance": (0.0, 10.0, "m2K/W"),
+    "contact_resistance": (0.0, 100.0, "m2K/W"),
 }
 MAX_BODY = 64 * 1024  # bytes; the page's bodies are a few hundred bytes
 MAX_DEPTH = 8  # JSON nesting; the page's bodies are 3 deep
