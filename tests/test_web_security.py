@@ -324,6 +324,24 @@ def test_a_hostile_body_gets_a_clear_4xx_and_the_server_goes_on(live, capfd, bod
     assert "Traceback" not in capfd.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "body",
+    [
+        b'"' + b'\\"' * 30_000,
+        b'{"a": "' + b"[" * 60_000 + b'"}',
+        b"[" * 60_000,
+        b'{"layers": {' + b'"3": {}, ' * 6000 + b"}}",
+    ],
+)
+def test_a_body_made_to_be_slow_to_check_is_answered_at_once(live, body):
+    httpd, _ = live
+    t = time.perf_counter()
+    status, answer, _ = request(httpd, "POST", "/api/simulate", body)
+    assert status == 400, answer
+    assert time.perf_counter() - t < 2.0  # one linear pass over at most 64 KiB
+    still_serving(httpd)
+
+
 def test_a_huge_body_is_refused_with_413(live):
     httpd, d = live
     before = snapshot(d)

@@ -267,11 +267,20 @@ class _Refused(Exception):
 
 
 def _depth(text: str) -> int:
-    """Deepest nesting of JSON arrays and objects in ``text`` (strings skipped), without recursing."""
+    """Deepest nesting of JSON arrays and objects in ``text`` (strings skipped): one linear pass."""
     depth = deepest = 0
-    for m in re.finditer(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', text):
-        c = m.group()
-        if c in "[{":
+    in_string = escaped = False
+    for c in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif c == "\\":
+                escaped = True
+            elif c == '"':
+                in_string = False
+        elif c == '"':
+            in_string = True
+        elif c in "[{":
             depth += 1
             deepest = max(deepest, depth)
         elif c in "]}":
