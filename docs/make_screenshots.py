@@ -57,7 +57,7 @@ def main():
         ).start()
         while "h" not in box:
             time.sleep(0.1)
-        d.get(f"http://127.0.0.1:{box['h'].server_address[1]}/")
+        d.get(box["h"].url)
         while not d.execute_script("return Number(document.body.dataset.version || 0)"):
             time.sleep(0.1)
         d.execute_script(

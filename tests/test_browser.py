@@ -108,13 +108,14 @@ def server(tmp_path_factory):
     wait_for(lambda: "httpd" in box, 60, "the server")
     httpd = box["httpd"]
     assert httpd.server_address[0] == "127.0.0.1"
-    yield f"http://127.0.0.1:{httpd.server_address[1]}/", d
+    assert httpd.url.startswith(f"http://127.0.0.1:{httpd.server_address[1]}/?token=")
+    yield httpd.url, d
     httpd.shutdown()
 
 
 def test_live_page_reacts_to_a_conductivity_change(driver, server):
     url, d = server
-    driver.get(url)
+    driver.get(url)  # the URL wallcal serve prints, with its token
     wait_for(
         lambda: driver.execute_script("return Number(document.body.dataset.version || 0)") >= 1, 30, "the first drawing"
     )
@@ -138,8 +139,52 @@ def test_live_page_reacts_to_a_conductivity_change(driver, server):
     wait_for(lambda: "saved" in driver.find_element("id", "status").text, 10, "the save")
     saved = d / "manual_wall.toml"
     assert saved.exists()
+    assert str(saved) in driver.find_element("id", "status").text
+    # a second save makes a new file, never overwrites the first
+    first = saved.read_bytes()
+    driver.find_element("id", "save").click()
+    wait_for(lambda: (d / "manual_wall-2.toml").exists(), 10, "the second save")
+    assert saved.read_bytes() == first
+    assert (d / "study.toml").read_bytes() == EXAMPLE.read_bytes()
     from wallcal import load_wall
 
     # the slider snaps to 1/400 of its span (0.02 .. 0.08 here)
     assert load_wall(saved).layers[0].conductivity == pytest.approx(0.048, abs=0.08 / 400)
     assert console_errors(driver) == []
+
+
+def test_live_page_without_its_token_says_so(driver, server):
+    url, d = server
+    driver.get(url.split("?")[0])
+    wait_for(lambda: "token" in driver.find_element("id", "status").text, 10, "the message")
+    assert "printed" in driver.find_element("id", "status").text
+
+
+def test_another_site_cannot_save_through_the_browser(driver, server, tmp_path):
+    """The attack of issue 18 from a real browser: a page of another origin posts text/plain to /api/save."""
+    import functools
+    from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+
+    url, d = server
+    before = sorted(p.name for p in d.iterdir())
+    target = url.split("?")[0]
+    (tmp_path / "evil.html").write_text(f"""<!DOCTYPE html><html><body><script>
+      fetch("{target}api/save", {{method: "POST", mode: "no-cors", headers: {{"Content-Type": "text/plain"}},
+                                 body: '{{"file": "study.toml"}}'}})
+        .finally(() => {{ document.title = "sent"; }});
+    </script></body></html>""")
+
+    class Quiet(SimpleHTTPRequestHandler):
+        def log_message(self, *a):
+            pass
+
+    evil = ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Quiet, directory=str(tmp_path)))
+    threading.Thread(target=evil.serve_forever, daemon=True).start()
+    try:
+        driver.get(f"http://127.0.0.1:{evil.server_address[1]}/evil.html")
+        wait_for(lambda: driver.title == "sent", 10, "the attacking request")
+    finally:
+        evil.shutdown()
+        evil.server_close()
+    assert (d / "study.toml").read_bytes() == EXAMPLE.read_bytes()
+    assert sorted(p.name for p in d.iterdir()) == before

@@ -102,3 +102,45 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def write_text_new(directory: str | Path, stem: str, text: str, suffix: str = ".toml", max_files: int = 1000) -> Path:
+    """Write ``text`` to a file that did not exist: ``stem + suffix``, else ``stem-2 + suffix``, ``-3``, ...
+
+    Never replaces or truncates an existing file, even one created by another process a moment
+    earlier: the text goes to a temporary file first, which is then hard-linked to the first free
+    name (``link`` fails when the name exists, atomically), so the file appears complete or not at
+    all. On a file system without hard links the name is created exclusively (``O_CREAT | O_EXCL``,
+    never following a symbolic link) and written. Returns the path written.
+    """
+    directory = Path(directory)
+    names = [f"{stem}{suffix}"] + [f"{stem}-{k}{suffix}" for k in range(2, max_files + 1)]
+    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        can_link = True
+        for name in names:
+            path = directory / name
+            if can_link:
+                try:
+                    os.link(tmp, path)
+                    return path
+                except FileExistsError:
+                    continue
+                except OSError:  # no hard links here (FAT, some network shares): exclusive creation instead
+                    can_link = False
+            try:
+                out = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
+            except FileExistsError:
+                continue
+            try:
+                with os.fdopen(out, "w", encoding="utf-8") as fh:
+                    fh.write(text)
+            except BaseException:
+                path.unlink(missing_ok=True)  # the file this call created, half-written
+                raise
+            return path
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    raise WallcalError(f"{directory}: {names[0]} .. {names[-1]} all exist; move some away or choose another name")

@@ -9,18 +9,43 @@ end points, all built on wallcal's public API only (``load_study``, ``prepare``,
   measured series and the base-case simulation;
 - ``POST /api/simulate``: ``{"layers": {id: {property: value}}, "probes": {name: depth}}``
   -> simulated series and metrics (one engine run on prepared data: milliseconds);
-- ``POST /api/save``: the same body -> the wall written as TOML next to the study
-  (``manual_wall.toml``, or ``{"file": name}``), and its text.
+- ``POST /api/save``: the same body (and an optional ``"file"`` name) -> the wall
+  written as a new TOML file next to the study (``manual_wall.toml``, else
+  ``manual_wall-2.toml``, ...; never an existing file), its path and its text.
+
+Only the user's own page may call the API (see docs/live-page.md):
+
+- a random token per server start, in the printed URL (``/?token=...``); the page
+  sends it in the ``X-Wallcal-Token`` header of every API call, compared in
+  constant time; missing or wrong: 403;
+- the ``Host`` header must name the bound address or ``localhost`` (DNS
+  rebinding), an ``Origin`` header must be the page's own, a ``Sec-Fetch-Site``
+  header must say ``same-origin``: 403 otherwise;
+- ``POST`` bodies: ``Content-Type: application/json`` only (415), a
+  ``Content-Length`` (411) of at most ``MAX_BODY`` bytes (413), sent within the
+  connection's time limit (408), UTF-8 JSON of finite numbers, nested at most
+  ``MAX_DEPTH`` deep, in the shape above, with physically possible values (400);
+- one thread per connection and a socket time-out per connection, so a slow or
+  stalled client never holds up the page.
 """
 
 from __future__ import annotations
 
+import base64
+import hashlib
+import hmac
+import ipaddress
 import json
 import math
+import re
+import secrets
+import socket
+import sys
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from pathlib import Path
+from pathlib import Path, PurePosixPath
+from urllib.parse import urlsplit
 
 import numpy as np
 
@@ -29,10 +54,68 @@ from wallcal.errors import WallcalError
 
 PAGE = Path(__file__).with_name("page.html")
 EDITABLE = ("conductivity", "density", "specific_heat", "conductivity_temperature_coefficient", "contact_resistance")
+#: The range the page accepts for each editable property (SI units): any building material with the sliders'
+#: factor-2 margin (vacuum panels and still air to metals; an air layer's 1.2 kg/m3 to lead; phase-change
+#: materials' apparent heat capacity), and the study file's temperature-coefficient bounds. Anything outside
+#: is refused as absurd.
+LIMITS = {
+    "conductivity": (1e-4, 1e4, "W/(m K)"),
+    "density": (0.01, 1e5, "kg/m3"),
+    "specific_heat": (1.0, 1e6, "J/(kg K)"),
+    "conductivity_temperature_coefficient": (-0.2, 0.2, "1/K"),
+    "contact_resistance": (0.0, 100.0, "m2K/W"),
+}
+MAX_BODY = 64 * 1024  # bytes; the page's bodies are a few hundred bytes
+MAX_DEPTH = 8  # JSON nesting; the page's bodies are 3 deep
+TIMEOUT = 10.0  # seconds a connection may take to send its request
+TOKEN_HEADER = "X-Wallcal-Token"
+SAVE_STEM = "manual_wall"
 
 
 def _clean(values) -> list:
     return [None if (v is None or not math.isfinite(v)) else round(float(v), 5) for v in values]
+
+
+def _number(v, where: str) -> float:
+    """A JSON number as a finite float, or a WallcalError naming ``where``."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise WallcalError(f"{where}: must be a number, got {type(v).__name__} {json.dumps(v)[:40]}")
+    try:
+        x = float(v)
+    except OverflowError:
+        x = math.inf
+    if not math.isfinite(x):
+        raise WallcalError(f"{where}: must be a finite number, got {str(v)[:40]}")
+    return x
+
+
+def _object(v, where: str) -> dict:
+    if not isinstance(v, dict):
+        raise WallcalError(f"{where}: must be a JSON object, got {type(v).__name__}")
+    return v
+
+
+def _safe_stem(name) -> str:
+    """The file name a save may use: the base name only, letters, digits, ``.``, ``_``, ``-``, no ``.toml``."""
+    if name is None:
+        return SAVE_STEM
+    if not isinstance(name, str):
+        raise WallcalError(f"file: must be a string, got {type(name).__name__}")
+    stem = PurePosixPath(name.replace("\\", "/")).name
+    if stem.lower().endswith(".toml"):
+        stem = stem[:-5]
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", stem).strip("._-")[:64]
+    return stem or SAVE_STEM
+
+
+def is_loopback(host: str) -> bool:
+    """True for ``localhost`` and loopback addresses (127.0.0.0/8, ::1)."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
 
 
 class ManualCalibration:
@@ -100,28 +183,39 @@ class ManualCalibration:
         }
 
     def wall_from(self, body: dict):
+        """The study's wall with the body's edits, every value checked (WallcalError names the bad one)."""
+        body = _object(body, "body")
+        unknown = sorted(set(body) - {"layers", "probes", "file"})
+        if unknown:
+            raise WallcalError(f"body: unknown key {unknown[0]!r} (expected layers, probes, file)")
         wall = self.study.wall
-        ids = {layer.id for layer in wall.layers}
-        for lid, props in (body.get("layers") or {}).items():
-            if lid not in ids:
-                raise WallcalError(f"layers: {lid!r} is not a layer id")
+        layers = {layer.id: layer for layer in wall.layers}
+        for lid, props in _object({} if body.get("layers") is None else body["layers"], "layers").items():
+            if lid not in layers:
+                raise WallcalError(f"layers: {lid[:40]!r} is not a layer id (the wall has {', '.join(layers)})")
+            layer = layers[lid]
             changes = {}
-            for prop, v in props.items():
+            for prop, v in _object(props, f"layers.{lid}").items():
+                where = f"layers.{lid}.{prop[:40]}"
                 if prop not in EDITABLE:
-                    raise WallcalError(f"layers.{lid}.{prop}: not an editable property")
-                v = float(v)
-                if (
-                    not math.isfinite(v)
-                    or (prop in ("conductivity", "density", "specific_heat") and v <= 0)
-                    or (prop == "contact_resistance" and v < 0)
-                ):
-                    raise WallcalError(f"layers.{lid}.{prop}: invalid value {v}")
+                    raise WallcalError(f"{where}: not an editable property (editable: {', '.join(EDITABLE)})")
+                if layer.is_massless and prop != "contact_resistance":
+                    raise WallcalError(f"{where}: layer {lid} is a no-mass layer (thermal_resistance only)")
+                if prop == "conductivity_temperature_coefficient" and layer.conductivity_table is not None:
+                    raise WallcalError(f"{where}: layer {lid} has a conductivity_table, not a coefficient")
+                v = _number(v, where)
+                lo, hi, unit = LIMITS[prop]
+                if not lo <= v <= hi:
+                    raise WallcalError(f"{where}: {v:g} {unit} is outside the possible range {lo:g} .. {hi:g} {unit}")
                 changes[prop] = v
             wall = wall.replace_layer(lid, **changes)
-        for name, depth in (body.get("probes") or {}).items():
-            depth = float(depth)
+        probes = {p.name for p in wall.probes}
+        for name, depth in _object({} if body.get("probes") is None else body["probes"], "probes").items():
+            if name not in probes:
+                raise WallcalError(f"probes: {name[:40]!r} is not a probe of the wall")
+            depth = _number(depth, f"probes.{name}")
             if not 0 <= depth <= wall.thickness:
-                raise WallcalError(f"probes.{name}: depth {depth} m is outside the wall")
+                raise WallcalError(f"probes.{name}: depth {depth:g} m is outside the wall (0 .. {wall.thickness:g} m)")
             wall = wall.replace_probe(name, depth=depth)
         return wall
 
@@ -133,19 +227,18 @@ class ManualCalibration:
         return self._payload(res, (time.perf_counter() - t) * 1000, wall)
 
     def save(self, body: dict) -> dict:
-        from wallcal.outputs import write_text_atomic
+        """Write the edited wall to a new TOML file in the study's folder (never an existing file)."""
+        from wallcal.outputs import write_text_new
         from wallcal.study import dump_wall
 
         wall = self.wall_from(body)
-        name = Path(str(body.get("file") or "manual_wall.toml")).name
-        if not name.endswith(".toml"):
-            name += ".toml"
+        stem = _safe_stem(body.get("file"))
         text = dump_wall(
             wall.replace(name=(wall.name or "wall") + " (manual calibration)"),
             f"saved by wallcal serve from {self.study_path.name}",
         )
-        path = write_text_atomic(self.study_path.parent / name, text)
-        return {"path": str(path), "toml": text}
+        path = write_text_new(self.study_path.parent, stem, text)
+        return {"path": str(path), "file": path.name, "toml": text}
 
     def _payload(self, res, ms: float, wall=None) -> dict:
         met = res.metrics.replace({np.nan: None})
@@ -159,69 +252,301 @@ class ManualCalibration:
         }
 
 
-def make_handler(app: ManualCalibration):
+class _Refused(Exception):
+    """A request answered with a 4xx status and a one-line message."""
+
+    def __init__(self, status: int, message: str):
+        super().__init__(message)
+        self.status = status
+
+
+def _depth(text: str) -> int:
+    """Deepest nesting of JSON arrays and objects in ``text`` (strings skipped): one linear pass."""
+    depth = deepest = 0
+    in_string = escaped = False
+    for c in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif c == "\\":
+                escaped = True
+            elif c == '"':
+                in_string = False
+        elif c == '"':
+            in_string = True
+        elif c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth -= 1
+    return deepest
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows (numbers must be finite)")
+
+
+def _finite_float(s: str) -> float:
+    x = float(s)
+    if not math.isfinite(x):
+        raise ValueError(f"{s[:40]} is out of range (numbers must be finite)")
+    return x
+
+
+def parse_body(raw: bytes):
+    """The JSON value of a request body, or _Refused(400) saying what is wrong with it."""
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _Refused(400, f"the body is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    if _depth(text) > MAX_DEPTH:
+        raise _Refused(400, f"the body is nested more than {MAX_DEPTH} levels deep")
+    try:
+        return json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
+    except (ValueError, RecursionError) as exc:
+        raise _Refused(400, f"the body is not valid JSON: {exc}") from None
+
+
+def _page_csp(page: bytes) -> str:
+    """A content security policy for the page: its own inline script only (by hash), no other resource."""
+    scripts = re.findall(rb"<script>(.*?)</script>", page, flags=re.S)
+    hashes = " ".join("'sha256-" + base64.b64encode(hashlib.sha256(s).digest()).decode() + "'" for s in scripts)
+    return (
+        f"default-src 'none'; script-src {hashes}; style-src 'unsafe-inline'; connect-src 'self'; "
+        "img-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
+    )
+
+
+class LiveServer(ThreadingHTTPServer):
+    """The threading HTTP server of ``wallcal serve``: one daemon thread per connection.
+
+    Attributes: ``app`` (the ManualCalibration), ``token`` (this start's secret), ``url``
+    (the page's address with the token), ``allowed_hosts`` (host names accepted in the
+    ``Host`` header; None: any, for a wildcard address with ``allow_remote``).
+    """
+
+    daemon_threads = True
+    block_on_close = False
+
+    def __init__(self, address, handler, app, token: str, allow_any_host: bool = False):
+        host = address[0]
+        self.address_family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        super().__init__(address, handler)
+        self.app = app
+        self.token = token
+        port = self.server_address[1]
+        names = {"localhost", host.lower(), f"[{host.lower()}]" if ":" in host else host.lower()}
+        if host.lower() == "localhost":
+            names.add("127.0.0.1")
+        self.allowed_hosts = None if allow_any_host else names
+        shown = {"0.0.0.0": "127.0.0.1", "::": "[::1]", "": "127.0.0.1"}.get(host, f"[{host}]" if ":" in host else host)
+        self.url = f"http://{shown}:{port}/?token={token}"
+
+    def handle_error(self, request, client_address):
+        """One line on stderr instead of a traceback; a client that went away is not an error."""
+        exc = sys.exc_info()[1]
+        if isinstance(exc, OSError):
+            return
+        print(f"wallcal serve: error answering {client_address[0]}: {type(exc).__name__}: {exc}", file=sys.stderr)
+
+
+def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
     page = PAGE.read_bytes()
+    csp = _page_csp(page)
+    routes = {"/api/study": ("GET", lambda body: app.state()), "/api/simulate": ("POST", app.simulate)}
+    routes["/api/save"] = ("POST", app.save)
 
     class Handler(BaseHTTPRequestHandler):
+        def setup(self):
+            self.timeout = timeout  # socket time-out of this connection (read by StreamRequestHandler.setup)
+            super().setup()
+            self._body_read = False
+
         def log_message(self, fmt, *args):  # quiet
             pass
 
-        def _send(self, code: int, body: bytes, ctype: str):
+        # ---------------------------------------------------------------- answering
+        def version_string(self):
+            return "wallcal"
+
+        def _send(self, code: int, body: bytes, ctype: str, extra: dict | None = None):
             self.send_response(code)
             self.send_header("Content-Type", ctype)
             self.send_header("Content-Length", str(len(body)))
             self.send_header("Cache-Control", "no-store")
+            self.send_header("X-Content-Type-Options", "nosniff")
+            self.send_header("Referrer-Policy", "no-referrer")
+            self.send_header("X-Frame-Options", "DENY")
+            self.send_header("Connection", "close")
+            for k, v in (extra or {}).items():
+                self.send_header(k, v)
             self.end_headers()
-            self.wfile.write(body)
+            if self.command != "HEAD":
+                self.wfile.write(body)
+            self.close_connection = True
+            announced = self.headers.get("Content-Length", "").strip() not in ("", "0")
+            if not self._body_read and (announced or self.headers.get("Transfer-Encoding")):
+                self._linger()
 
         def _json(self, code: int, obj):
             self._send(code, json.dumps(obj, allow_nan=False).encode(), "application/json")
 
-        def do_GET(self):
-            if self.path in ("/", "/index.html"):
-                self._send(200, page, "text/html; charset=utf-8")
-            elif self.path == "/api/study":
-                self._json(200, app.state())
-            elif self.path == "/favicon.ico":
-                self._send(204, b"", "image/x-icon")
-            else:
-                self._json(404, {"error": f"no such page: {self.path}"})
-
-        def do_POST(self):
-            n = int(self.headers.get("Content-Length") or 0)
-            if n > 1_000_000:
-                self._json(413, {"error": "request too large"})
-                return
+        def _linger(self):
+            """After answering a request whose body was not read: stop sending, then read and drop what the
+            client still sends (at most 2 s, 16 MiB), so that closing the socket does not reset the
+            connection before the client has read the answer."""
             try:
-                body = json.loads(self.rfile.read(n) or b"{}")
-                if self.path == "/api/simulate":
-                    self._json(200, app.simulate(body))
-                elif self.path == "/api/save":
-                    self._json(200, app.save(body))
-                else:
-                    self._json(404, {"error": f"no such end point: {self.path}"})
-            except (WallcalError, ValueError, TypeError) as exc:
-                self._json(400, {"error": str(exc)})
+                self.wfile.flush()
+                self.connection.shutdown(socket.SHUT_WR)
+                self.connection.settimeout(0.5)
+                deadline, dropped = time.monotonic() + 2.0, 0
+                while time.monotonic() < deadline and dropped < 16 << 20:
+                    chunk = self.connection.recv(1 << 16)
+                    if not chunk:
+                        break
+                    dropped += len(chunk)
+            except OSError:
+                pass
+
+        def _read(self, n: int) -> bytes:
+            """Exactly ``n`` body bytes, within the connection's time limit (408 otherwise)."""
+            deadline = time.monotonic() + timeout
+            chunks, got = [], 0
+            try:
+                while got < n:
+                    if time.monotonic() > deadline:
+                        raise TimeoutError
+                    chunk = self.rfile.read1(n - got)
+                    if not chunk:
+                        raise _Refused(400, f"the body ended after {got} of the {n} bytes announced")
+                    chunks.append(chunk)
+                    got += len(chunk)
+            except TimeoutError:
+                raise _Refused(408, f"the body did not arrive within {timeout:g} s ({got} of {n} bytes)") from None
+            return b"".join(chunks)
+
+        # ---------------------------------------------------------------- checks
+        def _check_host(self):
+            allowed = self.server.allowed_hosts
+            host = (self.headers.get("Host") or "").strip().lower()
+            if not host:
+                raise _Refused(403, "refused: no Host header")
+            name, _, port = host.rpartition(":") if not host.endswith("]") else (host, "", "")
+            if not name or (port and not re.fullmatch(r"[0-9]{1,5}", port)):
+                name, port = host, ""
+            if port and int(port) != self.server.server_address[1]:
+                raise _Refused(403, f"refused: Host {host!r} names another port")
+            if allowed is not None and name not in allowed:
+                raise _Refused(403, f"refused: Host {host!r} is not this server (only {', '.join(sorted(allowed))})")
+
+        def _check_caller(self):
+            """The API's checks: same origin, the token."""
+            origin = self.headers.get("Origin")
+            if origin is not None and origin.lower() != f"http://{self.headers['Host'].strip().lower()}":
+                raise _Refused(403, f"refused: requests from {origin[:100]!r} may not use this page's API")
+            site = self.headers.get("Sec-Fetch-Site")
+            if site is not None and site not in ("same-origin", "none"):
+                raise _Refused(403, f"refused: a {site} request may not use this page's API")
+            given = self.headers.get(TOKEN_HEADER)
+            if not given:
+                raise _Refused(
+                    403, f"refused: no token (header {TOKEN_HEADER}); open the page from the URL wallcal serve printed"
+                )
+            if not hmac.compare_digest(given.encode("utf-8", "surrogateescape"), self.server.token.encode()):
+                raise _Refused(403, "refused: wrong token; open the page from the URL this wallcal serve printed")
+
+        def _json_body(self):
+            ctype = self.headers.get("Content-Type") or ""
+            if ctype.split(";")[0].strip().lower() != "application/json":
+                raise _Refused(415, f"the API accepts Content-Type: application/json only, got {ctype[:60]!r}")
+            if self.headers.get("Transfer-Encoding"):
+                raise _Refused(411, "send the body with a Content-Length (no Transfer-Encoding)")
+            n = (self.headers.get("Content-Length") or "").strip()
+            if not n:
+                raise _Refused(411, "a Content-Length header is required")
+            if not re.fullmatch(r"[0-9]{1,15}", n):
+                raise _Refused(400, f"bad Content-Length {n[:40]!r}")
+            if int(n) > MAX_BODY:
+                raise _Refused(413, f"the body ({int(n)} bytes) is larger than the {MAX_BODY} bytes the API accepts")
+            raw = self._read(int(n))
+            self._body_read = True
+            return parse_body(raw)
+
+        # ---------------------------------------------------------------- dispatch
+        def _handle(self):
+            try:
+                self._check_host()
+                path = urlsplit(self.path).path
+                if path in ("/", "/index.html"):
+                    if self.command not in ("GET", "HEAD"):
+                        raise _Refused(405, f"{self.command} is not allowed on the page")
+                    self._send(200, page, "text/html; charset=utf-8", {"Content-Security-Policy": csp})
+                    return
+                if path == "/favicon.ico":
+                    self._send(204, b"", "image/x-icon")
+                    return
+                if path not in routes:
+                    raise _Refused(404, f"no such page: {path[:100]}")
+                self._check_caller()
+                method, action = routes[path]
+                if self.command != method:
+                    raise _Refused(405, f"{path} takes {method}, not {self.command}")
+                answer = action(self._json_body() if method == "POST" else None)
+                code = 200
+            except _Refused as exc:
+                code, answer = exc.status, {"error": str(exc)}
+            except WallcalError as exc:
+                code, answer = 400, {"error": str(exc)}
+            except Exception as exc:  # a bug: answer without a traceback, say it on the terminal
+                print(
+                    f"wallcal serve: internal error on {self.path[:100]}: {type(exc).__name__}: {exc}", file=sys.stderr
+                )
+                code, answer = 500, {"error": f"internal error ({type(exc).__name__}); see the terminal"}
+            self._json(code, answer)
+
+        do_GET = do_POST = do_HEAD = do_PUT = do_DELETE = do_PATCH = do_OPTIONS = _handle
 
     return Handler
 
 
-def serve(study_path, host: str = "127.0.0.1", port: int = 8765, ready=None):
-    """Serve the manual-calibration page until interrupted.
+def serve(
+    study_path,
+    host: str = "127.0.0.1",
+    port: int = 8765,
+    ready=None,
+    *,
+    allow_remote: bool = False,
+    token: str | None = None,
+    timeout: float = TIMEOUT,
+):
+    """Serve the manual-calibration page until interrupted (or ``shutdown()``).
 
     Parameters
     ----------
     study_path : path
     host : str
-        Interface to bind (127.0.0.1 by default: the page is for this machine only).
+        Interface to bind (127.0.0.1 by default: the page is for this machine only). Another
+        address needs ``allow_remote=True``: the token is then the page's only protection.
     port : int
         TCP port (0: any free port).
     ready : callable, optional
-        Called with the server once it listens (tests use it to learn the port).
+        Called with the server once it listens; ``server.url`` is the page's address with
+        its token (tests use it, the command prints it).
+    allow_remote : bool
+        Allow a ``host`` that is not a loopback address.
+    token : str, optional
+        The API token (default: 32 random bytes, new at every start).
+    timeout : float
+        Seconds a connection may take to send its request [s].
     """
+    if not is_loopback(host) and not allow_remote:
+        raise WallcalError(
+            f"--host {host}: not a loopback address; the page would be reachable from other machines "
+            "with only its token to protect it. Pass --allow-remote (allow_remote=True) if that is what you want"
+        )
     app = ManualCalibration(study_path)
-    httpd = ThreadingHTTPServer((host, port), make_handler(app))
-    httpd.daemon_threads = True
+    wildcard = host in ("", "0.0.0.0", "::")
+    httpd = LiveServer((host, port), make_handler(app, timeout), app, token or secrets.token_urlsafe(32), wildcard)
     if ready is not None:
         ready(httpd)
     try:
