@@ -19,7 +19,7 @@ from typing import Any
 from .errors import StudyError, closest
 from .wall import Layer, Probe, Wall
 
-ENGINES = ("fd-cn", "fd-implicit", "energyplus")
+ENGINES = ("fd-cn", "fd-implicit", "fd-reference", "energyplus")
 BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "heat_flux")
 QUANTITIES = ("temperature", "heat_flux")
 FACES = ("exterior", "interior")

@@ -369,6 +369,7 @@ class ReferenceEngine(Engine):
             face_row(A, r, 0, ext.type, ext.surface_coefficient, bc_theta[0], ue[n], ue[n + 1], T[0], +1.0)
             face_row(A, r, n_nodes - 1, intr.type, intr.surface_coefficient, bc_theta[1], ui[n], ui[n + 1], T[-1], -1.0)
             T_new = np.linalg.solve(A, r)
+            T_new[known] = r[known]  # imposed temperatures exactly (the solve may round them)
 
             # link and face fluxes of the step
             for k, lk in enumerate(disc.links):
@@ -481,7 +482,7 @@ def face_step_flux(kind, h, th, u0, u1, t_old, t_new, sign):
     return np.nan  # surface temperature: set by the caller from the link flux
 
 
-def steady_state(wall, disc, ext_type, int_type, ext, intr, ue0, ui0, tol=1e-13, max_iter=200):
+def steady_state(wall, disc, ext_type, int_type, ext, intr, ue0, ui0, tol=1e-12, max_iter=200):
     """Steady node temperatures for constant boundary values ``ue0``, ``ui0`` (Picard iterations on the
     Kirchhoff-mean conductances when lambda(T))."""
     n = disc.n_nodes
@@ -491,6 +492,7 @@ def steady_state(wall, disc, ext_type, int_type, ext, intr, ue0, ui0, tol=1e-13,
     if int_type == "heat_flux":
         guess = ue0
     T = np.full(n, guess)
+    last_change = np.inf
     for _ in range(max_iter):
         g = link_conductances(wall, disc, T)
         A = np.zeros((n, n))
@@ -504,10 +506,16 @@ def steady_state(wall, disc, ext_type, int_type, ext, intr, ue0, ui0, tol=1e-13,
         face_row(A, r, 0, ext_type, ext.surface_coefficient, 1.0, ue0, ue0, 0.0, +1.0)
         face_row(A, r, n - 1, int_type, intr.surface_coefficient, 1.0, ui0, ui0, 0.0, -1.0)
         T_new = np.linalg.solve(A, r)
-        change = np.max(np.abs(T_new - T))
+        if ext_type == "surface_temperature":
+            T_new[0] = ue0
+        if int_type == "surface_temperature":
+            T_new[-1] = ui0
+        change = float(np.max(np.abs(T_new - T)))
         T = T_new
-        if change < tol:
+        # converged: below tol, or at the round-off floor (the change no longer decreases, and is tiny)
+        if change < tol or (change < 1e-8 and change >= last_change):
             return T
+        last_change = change
     raise EngineError("steady initial state: Picard iterations did not converge")
 
 
