@@ -388,3 +388,24 @@ def test_selectable_by_name_in_a_study_and_on_the_command_line(tmp_path):
         d = np.max(np.abs(ref.simulated[sensor.name] - fast.simulated[sensor.name]))
         tol = T_TOL if sensor.quantity == "temperature" else qtol[sensor.face]
         assert d <= tol, (sensor.name, d, tol)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 3, 6, 9, 16, 18, 40])
+def test_flux_at_depth_is_uniform_in_a_steady_state(seed):
+    """Constant boundary values from the steady start: the heat flux is the same at every depth, at layer
+    interfaces and contact resistances too, with lambda(T) as well; for constant conductivities between
+    two surface temperatures it is the temperature difference over the wall's resistance."""
+    inp = make_case(seed)
+    n = 12
+    ext = dataclasses.replace(inp.exterior, values=np.full(n + 1, inp.exterior.values[0]))
+    intr = dataclasses.replace(inp.interior, values=np.full(n + 1, inp.interior.values[0]))
+    inp = dataclasses.replace(inp, exterior=ext, interior=intr, output_positions=np.linspace(0, n, 5))
+    w = inp.wall
+    depths = (*(float(x) for x in w.interfaces), *np.random.default_rng(seed).uniform(0, w.thickness, 5))
+    res = ReferenceEngine().simulate(inp, flux_depths=depths)
+    q_ext = res.fluxes["exterior"]
+    for d in depths:
+        np.testing.assert_allclose(res.depth_fluxes[float(d)], q_ext, rtol=1e-9, atol=1e-9)
+    if ext.type == intr.type == "surface_temperature" and w.is_linear:
+        q = (ext.values[0] - intr.values[0]) / w.resistance
+        np.testing.assert_allclose(q_ext, q, rtol=1e-10)
