@@ -23,7 +23,7 @@ import pytest
 
 from wallcal.engines.base import BoundaryInput, SimulationInput
 from wallcal.engines.fd import FDEngine
-from wallcal.engines.reference import ReferenceEngine, discretise
+from wallcal.engines.reference import ReferenceEngine, discretise, link_thetas
 from wallcal.errors import EngineError
 from wallcal.grid import build_grid
 from wallcal.wall import Layer, Probe, Wall
@@ -217,6 +217,18 @@ def test_generator_covers_every_family():
         assert f"{e[:3]}/{i[:3]}" in text
     for word in ("table", "exp", "contact", "no-mass"):
         assert sum(word in f for f in fams) >= 5, word
+    n_stiff = n_side = 0
+    for s in range(N_CASES):
+        inp = make_case(s)
+        grid = build_grid(inp.wall, inp.time_step, inp.grid_constant, inp.node_rule)
+        disc = discretise(inp.wall, grid.nodes_per_layer, tuple(int(i) for i in grid.link_contact_of if i >= 0))
+        g = np.array([lk.g_ref for lk in disc.links])
+        known = np.zeros(disc.n_nodes, dtype=bool)
+        theta, _ = link_thetas(disc.capacity, g, known, 0.5, inp.time_step, 10.0)
+        massive = np.array([lk.kind == "layer" for lk in disc.links])
+        n_stiff += bool((theta[massive] == 1.0).any())  # a massive link made implicit: stiff
+        n_side += any(p.side is not None for p in inp.wall.probes)
+    assert n_stiff >= 3 and n_side >= 5
     n_modal = 0
     for s in range(N_CASES):
         inp = make_case(s)
