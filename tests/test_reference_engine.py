@@ -10,6 +10,12 @@ Tolerances: 1e-6 K on temperatures. A face flux is a conductance times a tempera
 a capacity over dt times a temperature change), so the matching tolerance on a flux is 1e-6 K times the
 largest such factor at that face: the conductance of the face's link, the surface coefficient and
 c_face / dt [W/(m2K)].
+
+Walls with a table lambda(T) fail here while the fast paths evaluate a table link's Kirchhoff mean by
+Simpson's rule (kernels._update_conductances, _nonlinear_conductances): that is not the mean over the
+link when a table point lies between its two node temperatures (up to 0.67 K apart in this matrix);
+the reference integrates the table exactly, and test_reference_steady_state_is_exact_with_a_table_law
+shows the reference's steady state equal to the closed-form Kirchhoff profile.
 """
 
 from __future__ import annotations
