@@ -9,7 +9,7 @@ constant C and node rule (each may be overridden), on the same prepared data, an
   over the comparison timestamps [degC or W/m2];
 - the :class:`~wallcal.simulation.SimulationResult` of each engine.
 
-Engine names: ``fd-cn``, ``fd-implicit``, ``energyplus`` (Crank-Nicolson, as in a study's
+Engine names: ``fd-cn``, ``fd-implicit``, ``fd-reference``, ``energyplus`` (Crank-Nicolson, as in a study's
 ``simulation.engine = "energyplus"``), and ``energyplus-cn`` / ``energyplus-implicit`` to pick
 EnergyPlus' CondFD scheme explicitly.
 
@@ -35,7 +35,7 @@ from .metrics import METRIC_COLUMNS
 from .study import Study
 
 #: Engine names :func:`compare_engines` accepts.
-COMPARE_ENGINES = ("fd-cn", "fd-implicit", "energyplus", "energyplus-cn", "energyplus-implicit")
+COMPARE_ENGINES = ("fd-cn", "fd-implicit", "fd-reference", "energyplus", "energyplus-cn", "energyplus-implicit")
 #: Metrics shown in Table IV (rows per sensor), in this order.
 TABLE_IV_METRICS = ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14")
 #: Long-table metric columns (``comparison.csv``): engine, signal, unit, then every metric.

@@ -34,7 +34,7 @@ __all__ = [
     "wall_to_dict",
 ]
 
-ENGINES = ("fd-cn", "fd-implicit", "energyplus")
+ENGINES = ("fd-cn", "fd-implicit", "fd-reference", "energyplus")
 BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "heat_flux")
 QUANTITIES = ("temperature", "heat_flux")
 TEMPERATURE_UNITS = ("degC", "K")

@@ -1,11 +1,11 @@
-"""Engines by name: ``fd-cn``, ``fd-implicit`` (built in) and ``energyplus`` (optional extra)."""
+"""Engines by name: ``fd-cn``, ``fd-implicit``, ``fd-reference`` (built in) and ``energyplus`` (optional extra)."""
 
 from __future__ import annotations
 
 from ..errors import StudyError, closest
 from .base import BoundaryInput, Engine, EngineOutput, SimulationInput
 
-ENGINE_NAMES = ("fd-cn", "fd-implicit", "energyplus")
+ENGINE_NAMES = ("fd-cn", "fd-implicit", "fd-reference", "energyplus")
 
 
 def get_engine(name: str) -> Engine:
@@ -14,6 +14,10 @@ def get_engine(name: str) -> Engine:
         from .fd import FDEngine
 
         return FDEngine("cn" if name == "fd-cn" else "implicit")
+    if name == "fd-reference":
+        from .reference import ReferenceEngine
+
+        return ReferenceEngine()
     if name == "energyplus":
         from .energyplus import EnergyPlusEngine
 

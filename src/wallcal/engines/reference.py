@@ -1,0 +1,598 @@
+"""``fd-reference``: the finite-volume theta scheme written plainly in numpy, as a yardstick.
+
+This engine solves the same discrete equations as ``fd-cn``/``fd-implicit``
+(:mod:`wallcal.engines.fd`) with none of their speed: a dense matrix per step,
+``numpy.linalg.solve``, Python loops over nodes, links and steps. It exists so that
+the fast paths (tridiagonal kernels, modal diagonalisation) can be checked against
+something that can be read next to the equations in ``docs/reference-engine.md``.
+Only the node placement is shared with the fast engine (:func:`wallcal.grid.build_grid`:
+the node rule is part of the model's definition); capacities, conductances, the
+thetas, the steady start, the lambda(T) step, the outputs and the heat flux at a
+depth are computed here from the wall's layers.
+
+Equations (``docs/reference-engine.md`` has them in full)
+--------------------------------------------------------
+Nodes ``j`` at depths ``x_j``, links ``l`` between nodes ``l`` and ``l + 1``.
+
+- A massive layer of ``n`` intervals ``dx = d / n``: each interval is a link of
+  conductance ``g = lambda(T_ref) / dx`` and gives ``rho c dx / 2`` to each end node.
+  A no-mass layer: one link ``g = 1 / R``. A contact resistance: one link
+  ``g = 1 / max(R_c, 1e-7)`` between two nodes at the same depth.
+- Link flux over step ``n -> n + 1`` (positive towards the interior):
+  ``F_l = E_l + theta_l g0_l (T_l^{n+1} - T_{l+1}^{n+1})`` with
+  ``E_l = (1 - theta_l) g_l (T_l^n - T_{l+1}^n)`` for constant conductances (``g0 = g``).
+- Node balance of every node without an imposed temperature:
+  ``c_j (T_j^{n+1} - T_j^n) / dt = F_{j-1} - F_j (+ face term)``, the face terms
+  ``h (theta_b (u^{n+1} - T^{n+1}) + (1 - theta_b)(u^n - T^n))`` (air temperature) or
+  ``theta_b q^{n+1} + (1 - theta_b) q^n`` (heat flux; minus at the interior face).
+- ``theta_l = theta`` (1/2 or 1) except 1 on links that touch a node without heat
+  capacity or have ``g dt (1/c_a + 1/c_b) > stiff_limit`` (a face node with an imposed
+  temperature counts as infinite capacity); ``theta_b = 1`` when the face node has no capacity.
+- lambda(T): ``g*_l`` is the Kirchhoff mean of lambda over ``[T_{l+1}, T_l]`` at the
+  extrapolated mid-step temperature ``1.5 T^n - 0.5 T^{n-1}``; the matrix is kept at
+  ``g0`` and ``E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l``
+  with the predictor ``T~ = 2 T^n - T^{n-1}``; ``g0 <- g*`` (all links) whenever some
+  ``|g*_l - g0_l| > min(drift g0_l, 0.05 / (theta_l dt (1/c_a + 1/c_b)))``.
+- Outputs: probes linear between nodes, face fluxes and fluxes at a depth from the
+  step fluxes averaged over the two steps around a grid time; linear in time between
+  grid times.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import EngineError
+from ..grid import MIN_CONTACT_RESISTANCE, build_grid
+from ..wall import Wall
+from .base import BOUNDARY_TYPES, Engine, EngineOutput, SimulationInput
+
+SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
+DEFAULT_STIFF_LIMIT = 10.0
+DEFAULT_REFACTOR_DRIFT = 0.02
+
+
+# ---------------------------------------------------------------------------- the discrete wall
+@dataclass
+class Link:
+    """One link between node ``a`` and node ``a + 1``.
+
+    kind: ``"layer"`` (an interval of a massive layer), ``"no-mass"`` or ``"contact"``.
+    g_ref: conductance at the layer's reference temperature [W/(m2K)].
+    half_capacity: heat capacity the interval gives to each of its two nodes [J/(m2K)].
+    dx: interval length [m] (0 for a contact link).
+    layer: the layer it belongs to (for a contact link: the layer whose contact resistance it is).
+    """
+
+    a: int
+    kind: str
+    g_ref: float
+    half_capacity: float
+    dx: float
+    layer: int
+
+
+@dataclass
+class Discretisation:
+    """Nodes and links of one candidate wall on the prepared grid."""
+
+    x: np.ndarray  # node depths [m]
+    links: list[Link]
+    capacity: np.ndarray  # node heat capacities [J/(m2K)]
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.x)
+
+
+def discretise(wall: Wall, nodes_per_layer: tuple[int, ...], contact_after: tuple[int, ...]) -> Discretisation:
+    """Capacities and conductances of ``wall``: ``nodes_per_layer[i]`` intervals in massive layer i
+    (0 for a no-mass layer), a contact link after each layer listed in ``contact_after``."""
+    x = [0.0]
+    links: list[Link] = []
+    depth = 0.0
+    for i, layer in enumerate(wall.layers):
+        if layer.is_massless:
+            if nodes_per_layer[i] != 0:
+                raise EngineError(f"layer {layer.id!r}: a no-mass layer on a grid built for a massive one")
+            links.append(Link(len(x) - 1, "no-mass", 1.0 / float(layer.thermal_resistance), 0.0, layer.thickness, i))
+            depth += layer.thickness
+            x.append(depth)
+        else:
+            n = nodes_per_layer[i]
+            if n < 1:
+                raise EngineError(f"layer {layer.id!r}: a massive layer on a grid built for a no-mass one")
+            dx = layer.thickness / n
+            lam = float(layer.conductivity_at(layer.reference_temperature))
+            for k in range(1, n + 1):
+                links.append(Link(len(x) - 1, "layer", lam / dx, 0.5 * layer.volumetric_heat_capacity * dx, dx, i))
+                x.append(depth + k * dx if k < n else depth + layer.thickness)
+            depth += layer.thickness
+        if i in contact_after:
+            r = max(layer.contact_resistance, MIN_CONTACT_RESISTANCE)
+            links.append(Link(len(x) - 1, "contact", 1.0 / r, 0.0, 0.0, i))
+            x.append(depth)
+        elif i < len(wall.layers) - 1 and layer.contact_resistance > 0:
+            raise EngineError(f"layer {layer.id!r}: a contact resistance where the grid has no contact link")
+    cap = np.zeros(len(x))
+    for lk in links:
+        cap[lk.a] += lk.half_capacity
+        cap[lk.a + 1] += lk.half_capacity
+    return Discretisation(x=np.array(x), links=links, capacity=cap)
+
+
+# ---------------------------------------------------------------------------- lambda(T)
+def kirchhoff_mean_conductivity(layer, ta: float, tb: float) -> float:
+    """Mean of lambda(T) over [tb, ta] [W/(m K)]: (1 / (ta - tb)) * integral of lambda dT.
+
+    Exponential law lambda = lambda_ref exp(f (T - T_ref)): the closed form
+    lambda(T_m) sinh(z) / z with T_m = (ta + tb) / 2 and z = f (ta - tb) / 2.
+    Table (piecewise linear, constant beyond its ends): the exact integral, segment by
+    segment between the table's points that lie inside [tb, ta].
+    """
+    if layer.conductivity_table is None:
+        f = layer.conductivity_temperature_coefficient
+        z = 0.5 * f * (ta - tb)
+        sinhc = 1.0 if z == 0.0 else np.sinh(z) / z
+        return float(layer.conductivity_at(0.5 * (ta + tb))) * float(sinhc)
+    lo, hi = min(ta, tb), max(ta, tb)
+    if hi == lo:
+        return float(layer.conductivity_at(lo))
+    breaks = [float(t) for t, _ in layer.conductivity_table if lo < t < hi]
+    pts = [lo, *breaks, hi]
+    integral = 0.0
+    for s0, s1 in zip(pts[:-1], pts[1:], strict=True):
+        integral += (s1 - s0) * 0.5 * (float(layer.conductivity_at(s0)) + float(layer.conductivity_at(s1)))
+    return integral / (hi - lo)
+
+
+def link_conductances(wall: Wall, d: Discretisation, temps: np.ndarray) -> np.ndarray:
+    """Conductance of every link at node temperatures ``temps`` [W/(m2K)]: Kirchhoff mean for
+    lambda(T) layers, the reference value otherwise."""
+    g = np.empty(len(d.links))
+    for k, lk in enumerate(d.links):
+        layer = wall.layers[lk.layer]
+        if lk.kind == "layer" and layer.is_temperature_dependent:
+            g[k] = kirchhoff_mean_conductivity(layer, temps[lk.a], temps[lk.a + 1]) / lk.dx
+        else:
+            g[k] = lk.g_ref
+    return g
+
+
+# ---------------------------------------------------------------------------- results
+@dataclass
+class ReferenceResult:
+    """Everything one reference run produces.
+
+    Attributes
+    ----------
+    grid_temperatures : ndarray, shape (n_steps + 1, n_nodes)
+        Node temperatures [degC] at every grid time.
+    step_fluxes : ndarray, shape (n_steps, n_links)
+        Link heat fluxes F_l over each step [W/m2], positive towards the interior.
+    face_step_fluxes : ndarray, shape (n_steps, 2)
+        Exterior and interior face heat fluxes over each step [W/m2].
+    temperatures, fluxes : dict
+        Probe temperatures and face fluxes at the output times (as :class:`EngineOutput`).
+    depth_fluxes : dict[float, ndarray]
+        Heat flux [W/m2] at each requested depth [m], at the output times.
+    implicit_links : int
+        Links made fully implicit (no-capacity node or stiff).
+    refactorisations : int
+        lambda(T): how often ``g0`` was reset to ``g*`` after the start.
+    energy_residual : float
+        Stored-energy change minus net energy in over the run [J/m2].
+    """
+
+    disc: Discretisation
+    grid_temperatures: np.ndarray
+    step_fluxes: np.ndarray
+    face_step_fluxes: np.ndarray
+    temperatures: dict
+    fluxes: dict
+    depth_fluxes: dict
+    implicit_links: int
+    refactorisations: int
+    energy_residual: float
+    energy_throughput: float
+
+
+# ---------------------------------------------------------------------------- the engine
+class ReferenceEngine(Engine):
+    """Plain dense theta-scheme engine ``fd-reference`` (see module docstring).
+
+    The scheme is the input's ``scheme`` (``"cn"`` or ``"implicit"``); a study run with
+    ``engine = "fd-reference"`` gets Crank-Nicolson (:func:`wallcal.engines.scheme_of`).
+    Options read from ``SimulationInput.options``: ``stiff_limit`` (default 10),
+    ``refactor_drift`` (default 0.02), ``grid_time_step`` (build the grid for another step).
+    """
+
+    name = "fd-reference"
+
+    def run(self, inp: SimulationInput) -> EngineOutput:
+        """Run the input's wall."""
+        t = time.perf_counter()
+        res = self.simulate(inp)
+        return self._output(inp, res, time.perf_counter() - t)
+
+    def run_walls(
+        self, inp: SimulationInput, walls: list[Wall], contact_layers: frozenset[int] = frozenset()
+    ) -> list[EngineOutput]:
+        """Run candidate walls (same layer structure as ``inp.wall``) on the grid of ``inp.wall``, one by one."""
+        outs = []
+        for w in walls:
+            t = time.perf_counter()
+            res = self.simulate(inp, wall=w, contact_layers=contact_layers)
+            outs.append(self._output(inp, res, time.perf_counter() - t))
+        return outs
+
+    def _output(self, inp: SimulationInput, res: ReferenceResult, seconds: float) -> EngineOutput:
+        info = {
+            "engine": self.name,
+            "scheme": inp.scheme,
+            "path": "reference",
+            "nodes": res.disc.n_nodes,
+            "implicit_links": res.implicit_links,
+            "refactorisations": res.refactorisations,
+            "energy_residual_J_m2": res.energy_residual,
+            "energy_throughput_J_m2": res.energy_throughput,
+            "seconds": seconds,
+        }
+        return EngineOutput(temperatures=res.temperatures, fluxes=res.fluxes, info=info)
+
+    # ------------------------------------------------------------------ one run
+    def simulate(
+        self,
+        inp: SimulationInput,
+        wall: Wall | None = None,
+        flux_depths: tuple[float, ...] = (),
+        contact_layers: frozenset[int] = frozenset(),
+        initial_state: np.ndarray | None = None,
+    ) -> ReferenceResult:
+        """Run one wall and keep everything.
+
+        Parameters
+        ----------
+        inp : SimulationInput
+            Boundary series, output times, grid settings; its wall fixes the grid.
+        wall : Wall, optional
+            A candidate wall with the same layer structure (default ``inp.wall``); its probes are used.
+        flux_depths : tuple of float
+            Depths [m] at which the heat flux density is wanted (see :func:`flux_at_depth`).
+        contact_layers : frozenset of int
+            Layers that get a contact link even with a zero contact resistance (as in
+            :func:`wallcal.grid.build_grid`).
+        initial_state : ndarray, optional
+            Node temperatures [degC] at grid time 0; default the steady state of the first boundary values.
+        """
+        wall = inp.wall if wall is None else wall
+        theta0, stiff_limit, drift = self._settings(inp)
+        ext, intr = inp.exterior, inp.interior
+        for face, b in (("exterior", ext), ("interior", intr)):
+            if b.type not in BOUNDARY_TYPES:
+                raise EngineError(f"{face} boundary: unknown type {b.type!r}; one of {BOUNDARY_TYPES}")
+            if b.type == "air_temperature" and not (b.surface_coefficient and b.surface_coefficient > 0):
+                raise EngineError(f"{face} boundary: an air temperature needs a surface coefficient > 0")
+        if ext.type == "heat_flux" and intr.type == "heat_flux":
+            raise EngineError("heat-flux boundaries on both faces leave the temperature level undetermined")
+        ue = np.asarray(ext.values, dtype=float)
+        ui = np.asarray(intr.values, dtype=float)
+        n_steps = len(ue) - 1
+        if n_steps < 1 or len(ui) != len(ue):
+            raise EngineError("boundary series must have the same length, at least two values")
+        dt = float(inp.time_step)
+
+        grid_dt = inp.options.get("grid_time_step", inp.time_step)
+        grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, contact_layers)
+        contact_after = tuple(int(li) for li in grid.link_contact_of if li >= 0)
+        disc = discretise(wall, grid.nodes_per_layer, contact_after)
+        if not np.allclose(disc.x, grid.x, rtol=0, atol=1e-12 * max(1.0, wall.thickness)) and wall is inp.wall:
+            raise EngineError("internal: node depths differ from wallcal.grid.build_grid")
+        cap = disc.capacity
+        n_nodes = disc.n_nodes
+        n_links = len(disc.links)
+        g_ref = np.array([lk.g_ref for lk in disc.links])
+        known = np.zeros(n_nodes, dtype=bool)  # nodes whose temperature is imposed
+        known[0] = ext.type == "surface_temperature"
+        known[-1] = intr.type == "surface_temperature"
+
+        theta, bc_theta = link_thetas(cap, g_ref, known, theta0, dt, stiff_limit)
+        implicit_links = int(np.sum(theta != theta0))
+        nonlinear = any(lk.kind == "layer" and wall.layers[lk.layer].is_temperature_dependent for lk in disc.links)
+        # drift tolerance of a lambda(T) step (see module docstring); 0 on links touching a node without capacity
+        lim = np.empty(n_links)
+        for k, lk in enumerate(disc.links):
+            a, b = lk.a, lk.a + 1
+            if (cap[a] <= 0 and not known[a]) or (cap[b] <= 0 and not known[b]):
+                lim[k] = 0.0
+                continue
+            stiff = theta[k] * dt * ((0.0 if known[a] else 1.0 / cap[a]) + (0.0 if known[b] else 1.0 / cap[b]))
+            lim[k] = 0.05 / stiff if stiff > 0 else np.inf
+
+        # initial state
+        if initial_state is None:
+            T = steady_state(wall, disc, ext.type, intr.type, ext, intr, ue[0], ui[0])
+        else:
+            T = np.array(initial_state, dtype=float)
+            if known[0]:
+                T[0] = ue[0]
+            if known[-1]:
+                T[-1] = ui[0]
+        T_prev = T.copy()  # T^{n-1} (= T^0 before the first step)
+        g0 = link_conductances(wall, disc, T) if nonlinear else g_ref.copy()
+        tol = np.minimum(drift * g0, lim)
+        refactorisations = 0
+
+        Ts = np.empty((n_steps + 1, n_nodes))
+        Ts[0] = T
+        F = np.empty((n_steps, n_links))
+        Fface = np.empty((n_steps, 2))
+        for n in range(n_steps):
+            # conductances of the step and the explicit part E of every link flux
+            pred = 2.0 * T - T_prev  # predictor of T^{n+1}
+            if known[0]:
+                pred[0] = ue[n + 1]
+            if known[-1]:
+                pred[-1] = ui[n + 1]
+            if nonlinear:
+                gs = link_conductances(wall, disc, 1.5 * T - 0.5 * T_prev)
+                if n > 0 and np.any(np.abs(gs - g0) > tol):
+                    g0 = gs.copy()
+                    tol = np.minimum(drift * g0, lim)
+                    refactorisations += 1
+            else:
+                gs = g0
+            E = np.empty(n_links)
+            for k, lk in enumerate(disc.links):
+                a, b = lk.a, lk.a + 1
+                dpred = pred[a] - pred[b]
+                E[k] = gs[k] * (theta[k] * dpred + (1 - theta[k]) * (T[a] - T[b])) - theta[k] * g0[k] * dpred
+
+            # the system A T^{n+1} = r: one row per node
+            A = np.zeros((n_nodes, n_nodes))
+            r = np.zeros(n_nodes)
+            for j in range(n_nodes):
+                A[j, j] = cap[j] / dt
+                r[j] = cap[j] / dt * T[j]
+            for k, lk in enumerate(disc.links):  # F_l = E_l + theta g0 (T_a - T_b) leaves a, enters b
+                a, b = lk.a, lk.a + 1
+                tg = theta[k] * g0[k]
+                A[a, a] += tg
+                A[a, b] -= tg
+                A[b, b] += tg
+                A[b, a] -= tg
+                r[a] -= E[k]
+                r[b] += E[k]
+            face_row(A, r, 0, ext.type, ext.surface_coefficient, bc_theta[0], ue[n], ue[n + 1], T[0], +1.0)
+            face_row(A, r, n_nodes - 1, intr.type, intr.surface_coefficient, bc_theta[1], ui[n], ui[n + 1], T[-1], -1.0)
+            T_new = np.linalg.solve(A, r)
+            T_new[known] = r[known]  # imposed temperatures exactly (the solve may round them)
+
+            # link and face fluxes of the step
+            for k, lk in enumerate(disc.links):
+                F[n, k] = E[k] + theta[k] * g0[k] * (T_new[lk.a] - T_new[lk.a + 1])
+            Fface[n, 0] = face_step_flux(
+                ext.type, ext.surface_coefficient, bc_theta[0], ue[n], ue[n + 1], T[0], T_new[0], +1.0
+            )
+            Fface[n, 1] = face_step_flux(
+                intr.type, intr.surface_coefficient, bc_theta[1], ui[n], ui[n + 1], T[-1], T_new[-1], -1.0
+            )
+            if known[0]:  # imposed surface temperature: link flux plus the face node's storage
+                Fface[n, 0] = F[n, 0] + cap[0] * (T_new[0] - T[0]) / dt
+            if known[-1]:
+                Fface[n, 1] = F[n, -1] - cap[-1] * (T_new[-1] - T[-1]) / dt
+            T_prev, T = T, T_new
+            Ts[n + 1] = T
+
+        # energy balance: stored-energy change against the net energy in through the faces
+        stored = float(np.dot(cap, Ts[-1]) - np.dot(cap, Ts[0]))
+        e_in, e_out = dt * Fface[:, 0].sum(), dt * Fface[:, 1].sum()
+
+        # outputs at the output times
+        pos = np.asarray(inp.output_positions, dtype=float)
+        if len(pos) and (pos.min() < -1e-9 or pos.max() > n_steps + 1e-9 or np.any(np.diff(pos) < 0)):
+            raise EngineError("output times must be increasing and inside the simulated period")
+        temps = {}
+        for name in inp.probes:
+            p = wall.probe(name)
+            w_node = probe_node_weights(disc.x, p.depth, p.side)
+            temps[name] = in_time(Ts @ w_node, pos)
+        face_q = {
+            "exterior": grid_time_values(Fface[:, 0], ext.type, ue),
+            "interior": grid_time_values(Fface[:, 1], intr.type, ui),
+        }
+        fluxes = {face: in_time(face_q[face], pos) for face in inp.flux_faces}
+        depth_fluxes = {}
+        for depth in flux_depths:
+            q, face = flux_at_depth(disc, F, Ts, dt, float(depth))
+            q_grid = face_q[face] if face else grid_time_values(q, None, None)
+            depth_fluxes[float(depth)] = in_time(q_grid, pos)
+        return ReferenceResult(
+            disc=disc,
+            grid_temperatures=Ts,
+            step_fluxes=F,
+            face_step_fluxes=Fface,
+            temperatures=temps,
+            fluxes=fluxes,
+            depth_fluxes=depth_fluxes,
+            implicit_links=implicit_links,
+            refactorisations=refactorisations,
+            energy_residual=stored - (e_in - e_out),
+            energy_throughput=abs(e_in) + abs(e_out),
+        )
+
+    @staticmethod
+    def _settings(inp: SimulationInput) -> tuple[float, float, float]:
+        if inp.scheme not in SCHEME_THETA:
+            raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
+        theta0 = SCHEME_THETA[inp.scheme]
+        stiff_limit = float(inp.options.get("stiff_limit", DEFAULT_STIFF_LIMIT))
+        drift = float(inp.options.get("refactor_drift", DEFAULT_REFACTOR_DRIFT))
+        return theta0, stiff_limit, drift
+
+
+# ---------------------------------------------------------------------------- pieces of the scheme
+def link_thetas(cap, g, known, theta0, dt, stiff_limit):
+    """theta of every link and of the two face terms (see module docstring)."""
+    n_nodes = len(cap)
+    inv_c = np.empty(n_nodes)
+    for j in range(n_nodes):
+        if known[j]:
+            inv_c[j] = 0.0  # an imposed temperature: infinite capacity
+        elif cap[j] > 0:
+            inv_c[j] = 1.0 / cap[j]
+        else:
+            inv_c[j] = np.inf
+    theta = np.full(len(g), theta0)
+    if theta0 < 1.0:
+        for k in range(len(g)):
+            pair = g[k] * dt * (inv_c[k] + inv_c[k + 1])
+            if not np.isfinite(pair) or pair > stiff_limit:
+                theta[k] = 1.0
+    bc_theta = np.array([1.0 if np.isinf(inv_c[0]) else theta0, 1.0 if np.isinf(inv_c[n_nodes - 1]) else theta0])
+    return theta, bc_theta
+
+
+def face_row(A, r, j, kind, h, th, u0, u1, t_old, sign):
+    """Add a face's boundary condition to row ``j`` of ``A T^{n+1} = r``.
+
+    ``sign`` is +1 at the exterior face (a flux towards the interior enters the wall) and -1 at the
+    interior face (it leaves the wall).
+    """
+    if kind == "surface_temperature":
+        A[j, :] = 0.0
+        A[j, j] = 1.0
+        r[j] = u1
+    elif kind == "air_temperature":  # h (T_air - T_s) enters the face node
+        A[j, j] += th * h
+        r[j] += h * (th * u1 + (1.0 - th) * (u0 - t_old))
+    else:  # heat flux density q, positive towards the interior
+        r[j] += sign * (th * u1 + (1.0 - th) * u0)
+
+
+def face_step_flux(kind, h, th, u0, u1, t_old, t_new, sign):
+    """Face heat flux over a step for air-temperature and heat-flux faces (positive towards the interior)."""
+    if kind == "air_temperature":
+        return sign * h * (th * (u1 - t_new) + (1.0 - th) * (u0 - t_old))
+    if kind == "heat_flux":
+        return th * u1 + (1.0 - th) * u0
+    return np.nan  # surface temperature: set by the caller from the link flux
+
+
+def steady_state(wall, disc, ext_type, int_type, ext, intr, ue0, ui0, tol=1e-12, max_iter=200):
+    """Steady node temperatures for constant boundary values ``ue0``, ``ui0`` (Picard iterations on the
+    Kirchhoff-mean conductances when lambda(T))."""
+    n = disc.n_nodes
+    guess = 0.5 * (ue0 + ui0)
+    if ext_type == "heat_flux":
+        guess = ui0
+    if int_type == "heat_flux":
+        guess = ue0
+    T = np.full(n, guess)
+    last_change = np.inf
+    for _ in range(max_iter):
+        g = link_conductances(wall, disc, T)
+        A = np.zeros((n, n))
+        r = np.zeros(n)
+        for k, lk in enumerate(disc.links):
+            a, b = lk.a, lk.a + 1
+            A[a, a] += g[k]
+            A[a, b] -= g[k]
+            A[b, b] += g[k]
+            A[b, a] -= g[k]
+        face_row(A, r, 0, ext_type, ext.surface_coefficient, 1.0, ue0, ue0, 0.0, +1.0)
+        face_row(A, r, n - 1, int_type, intr.surface_coefficient, 1.0, ui0, ui0, 0.0, -1.0)
+        T_new = np.linalg.solve(A, r)
+        if ext_type == "surface_temperature":
+            T_new[0] = ue0
+        if int_type == "surface_temperature":
+            T_new[-1] = ui0
+        change = float(np.max(np.abs(T_new - T)))
+        T = T_new
+        # converged: below tol, or at the round-off floor (the change no longer decreases, and is tiny)
+        if change < tol or (change < 1e-8 and change >= last_change):
+            return T
+        last_change = change
+    raise EngineError("steady initial state: Picard iterations did not converge")
+
+
+def probe_node_weights(x: np.ndarray, depth: float, side: str | None) -> np.ndarray:
+    """Weights w with T(depth) = w . T_nodes: exact on a node, linear between nodes. Where several
+    nodes share the depth (a contact resistance), ``side`` picks the exterior-most (``"exterior"``),
+    the interior-most (``"interior"``) or the mean of the two (None)."""
+    n = len(x)
+    w = np.zeros(n)
+    d = min(max(depth, 0.0), x[-1])
+    tol = 1e-12 * max(1.0, x[-1])
+    on = [j for j in range(n) if abs(x[j] - d) <= tol]
+    if on:
+        first, last = on[0], on[-1]
+        if first == last or side == "exterior":
+            w[first] = 1.0
+        elif side == "interior":
+            w[last] = 1.0
+        else:
+            w[first] += 0.5
+            w[last] += 0.5
+        return w
+    j = max(k for k in range(n) if x[k] < d)
+    s = (d - x[j]) / (x[j + 1] - x[j])
+    w[j] = 1.0 - s
+    w[j + 1] = s
+    return w
+
+
+def grid_time_values(step_values: np.ndarray, face_type: str | None, imposed: np.ndarray | None) -> np.ndarray:
+    """Values at the grid times of a quantity known per step: (q^{j-1/2} + q^{j+1/2}) / 2, one-sided at
+    the first and last grid time; an imposed heat flux is reported as imposed."""
+    if face_type == "heat_flux":
+        return np.asarray(imposed, dtype=float).copy()
+    s = np.asarray(step_values, dtype=float)
+    out = np.empty(len(s) + 1)
+    out[0] = s[0]
+    out[-1] = s[-1]
+    out[1:-1] = 0.5 * (s[:-1] + s[1:])
+    return out
+
+
+def in_time(grid_values: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Values at fractional grid positions ``pos``, linear between grid times."""
+    n_steps = len(grid_values) - 1
+    out = np.empty(len(pos))
+    for k, p in enumerate(pos):
+        step = min(max(int(np.floor(p + 1e-9)), 0), n_steps - 1)
+        w = min(max(p - step, 0.0), 1.0)
+        out[k] = (1.0 - w) * grid_values[step] + w * grid_values[step + 1]
+    return out
+
+
+def flux_at_depth(disc: Discretisation, F: np.ndarray, Ts: np.ndarray, dt: float, depth: float):
+    """Heat flux density through the plane at ``depth`` over every step [W/m2], positive towards the interior,
+    and the face (``"exterior"``/``"interior"``) when the plane is a face (None inside the wall).
+
+    The scheme's own flux: inside a link, the link flux ``F_l``; on a node ``k`` (the innermost node at
+    that depth when several share it), the flux into the next link plus the heat stored by the part of
+    the node's control volume on the interior side of the plane,
+    ``F_k + c_k^+ (T_k^{n+1} - T_k^n) / dt`` with ``c_k^+`` the half capacity of the interval towards the
+    interior (the node balance makes this equal to ``F_{k-1} - c_k^- dT_k/dt``); on the faces, the face
+    fluxes (returned as ``(None, face)``: the caller takes its face-flux series). Consistent with the
+    face fluxes and the energy balance of every slice of the wall.
+    """
+    x = disc.x
+    n = len(x)
+    d = min(max(depth, 0.0), x[-1])
+    tol = 1e-12 * max(1.0, x[-1])
+    on = [j for j in range(n) if abs(x[j] - d) <= tol]
+    if not on:
+        k = max(j for j in range(n) if x[j] < d)  # the link from node k to node k + 1
+        return F[:, k].copy(), None
+    k = on[-1]
+    if k == n - 1:
+        return None, "interior"
+    if on[0] == 0 and d == 0.0:
+        return None, "exterior"
+    c_plus = disc.links[k].half_capacity
+    return F[:, k] + c_plus * (Ts[1:, k] - Ts[:-1, k]) / dt, None
