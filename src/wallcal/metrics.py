@@ -108,11 +108,59 @@ def table(measured: pd.DataFrame, simulated: pd.DataFrame, accuracies: dict[str,
 
     ``accuracies`` maps a signal to ``(accuracy, accuracy_relative)``.
     """
-    rows = []
-    for name in measured.columns:
-        acc, accr = accuracies.get(name, (None, None))
-        rows.append({"signal": name, **compute(measured[name], simulated[name], acc, accr)})
-    return pd.DataFrame(rows, columns=list(METRIC_COLUMNS))
+    names = list(measured.columns)
+    acc = [accuracies.get(name, (None, None)) for name in names]
+    return table_arrays(names, measured.to_numpy(dtype=float), simulated[names].to_numpy(dtype=float), acc)
+
+
+def table_arrays(names, measured: np.ndarray, simulated: np.ndarray, accuracies) -> pd.DataFrame:
+    """:func:`table` for arrays, all signals in one numpy pass (the same definitions as :func:`compute`).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Signal names, one per column.
+    measured, simulated : ndarray, shape (n_times, n_signals)
+    accuracies : sequence of (accuracy, accuracy_relative)
+    """
+    y = np.asarray(measured, dtype=float)
+    s = np.asarray(simulated, dtype=float)
+    ok = np.isfinite(y) & np.isfinite(s)
+    n = ok.sum(axis=0)
+    nan = float("nan")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.where(ok, s - y, 0.0)
+        yz = np.where(ok, y, 0.0)
+        se2 = np.einsum("tk,tk->k", e, e)
+        rmse = np.sqrt(se2 / n)
+        rng = np.where(ok, y, -np.inf).max(axis=0) - np.where(ok, y, np.inf).min(axis=0)
+        y_eff = np.sqrt(np.einsum("tk,tk->k", yz, yz) / n)
+        ybar = yz.sum(axis=0) / n
+        dof = n - G14_PARAMETERS
+        mbe = -e.sum(axis=0) / n
+        g14 = (dof > 0) & (ybar != 0)
+        nmbe = np.where(g14, -e.sum(axis=0) / (dof * ybar), nan)
+        cv_g14 = np.where(g14, np.sqrt(se2 / dof) / ybar, nan)
+        mae = np.abs(e).sum(axis=0) / n
+        max_abs = np.abs(e).max(axis=0, initial=0.0)
+        acc = [a if a is not None else (ar * y_eff[k] if ar else nan) for k, (a, ar) in enumerate(accuracies)]
+        acc = np.array(acc, dtype=float)
+        has = n > 0
+        cols = {
+            "signal": pd.array(list(names), dtype="str"),
+            "n": n.astype(np.int64),
+            "rmse": np.where(has, rmse, nan),
+            "rn_rmse": np.where(has & (rng > 0), rmse / rng, nan),
+            "cv_rmse_eff": np.where(has & (y_eff > 0), rmse / y_eff, nan),
+            "mbe": np.where(has, mbe, nan),
+            "nmbe": np.where(has, nmbe, nan),
+            "cv_rmse_g14": np.where(has, cv_g14, nan),
+            "mae": np.where(has, mae, nan),
+            "max_abs_error": np.where(has, max_abs, nan),
+            "accuracy": np.where(has | np.array([a is not None for a, _ in accuracies]), acc, nan),
+            "within_accuracy": has & np.isfinite(acc) & (rmse <= acc),
+        }
+    return pd.DataFrame(cols, copy=False)
 
 
 def rmse(measured, simulated, axis=-1):

