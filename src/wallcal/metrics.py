@@ -110,57 +110,83 @@ def table(measured: pd.DataFrame, simulated: pd.DataFrame, accuracies: dict[str,
     """
     names = list(measured.columns)
     acc = [accuracies.get(name, (None, None)) for name in names]
-    return table_arrays(names, measured.to_numpy(dtype=float), simulated[names].to_numpy(dtype=float), acc)
+    return table_arrays(names, measured.to_numpy(dtype=float).T, simulated[names].to_numpy(dtype=float).T, acc)
 
 
-def table_arrays(names, measured: np.ndarray, simulated: np.ndarray, accuracies) -> pd.DataFrame:
-    """:func:`table` for arrays, all signals in one numpy pass (the same definitions as :func:`compute`).
+def measured_stats(measured: np.ndarray, valid: np.ndarray | None = None) -> dict:
+    """What the metrics need of the measured series alone (computed once for many simulated series).
 
     Parameters
     ----------
-    names : sequence of str
-        Signal names, one per column.
-    measured, simulated : ndarray, shape (n_times, n_signals)
+    measured : ndarray, shape (n_signals, n_times)
+    valid : ndarray of bool, same shape, optional
+        Samples to use; default the finite measured ones.
+    """
+    y = np.asarray(measured, dtype=float)
+    ok = np.isfinite(y) if valid is None else valid
+    n = ok.sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        yz = np.where(ok, y, 0.0)
+        return {
+            "ok": ok,
+            "n": n,
+            "range": np.where(ok, y, -np.inf).max(axis=1) - np.where(ok, y, np.inf).min(axis=1),
+            "y_eff": np.sqrt(np.einsum("kt,kt->k", yz, yz) / n),
+            "mean": yz.sum(axis=1) / n,
+        }
+
+
+def table_arrays(names, measured: np.ndarray, simulated: np.ndarray, accuracies, stats: dict | None = None):
+    """:func:`table` for arrays, every signal in one numpy pass (the definitions of :func:`compute`).
+
+    Parameters
+    ----------
+    names : sequence of str or pandas string array
+        Signal names, one per row of the arrays.
+    measured, simulated : ndarray, shape (n_signals, n_times)
     accuracies : sequence of (accuracy, accuracy_relative)
+    stats : dict, optional
+        :func:`measured_stats` of ``measured`` (used when ``simulated`` is finite everywhere).
+
+    Returns
+    -------
+    DataFrame
+        Columns :data:`METRIC_COLUMNS`, one row per signal.
     """
     y = np.asarray(measured, dtype=float)
     s = np.asarray(simulated, dtype=float)
-    ok = np.isfinite(y) & np.isfinite(s)
-    n = ok.sum(axis=0)
+    if stats is None or not np.isfinite(s).all():
+        stats = measured_stats(y, np.isfinite(y) & np.isfinite(s))
+    ok, n, rng, y_eff, ybar = stats["ok"], stats["n"], stats["range"], stats["y_eff"], stats["mean"]
     nan = float("nan")
     with np.errstate(divide="ignore", invalid="ignore"):
         e = np.where(ok, s - y, 0.0)
-        yz = np.where(ok, y, 0.0)
-        se2 = np.einsum("tk,tk->k", e, e)
+        se2 = np.einsum("kt,kt->k", e, e)
         rmse = np.sqrt(se2 / n)
-        rng = np.where(ok, y, -np.inf).max(axis=0) - np.where(ok, y, np.inf).min(axis=0)
-        y_eff = np.sqrt(np.einsum("tk,tk->k", yz, yz) / n)
-        ybar = yz.sum(axis=0) / n
         dof = n - G14_PARAMETERS
-        mbe = -e.sum(axis=0) / n
+        se = e.sum(axis=1)
         g14 = (dof > 0) & (ybar != 0)
-        nmbe = np.where(g14, -e.sum(axis=0) / (dof * ybar), nan)
-        cv_g14 = np.where(g14, np.sqrt(se2 / dof) / ybar, nan)
-        mae = np.abs(e).sum(axis=0) / n
-        max_abs = np.abs(e).max(axis=0, initial=0.0)
+        ae = np.abs(e)
         acc = [a if a is not None else (ar * y_eff[k] if ar else nan) for k, (a, ar) in enumerate(accuracies)]
         acc = np.array(acc, dtype=float)
         has = n > 0
         cols = {
-            "signal": pd.array(list(names), dtype="str"),
+            "signal": names
+            if isinstance(names, pd.api.extensions.ExtensionArray)
+            else pd.array(list(names), dtype="str"),
             "n": n.astype(np.int64),
             "rmse": np.where(has, rmse, nan),
             "rn_rmse": np.where(has & (rng > 0), rmse / rng, nan),
             "cv_rmse_eff": np.where(has & (y_eff > 0), rmse / y_eff, nan),
-            "mbe": np.where(has, mbe, nan),
-            "nmbe": np.where(has, nmbe, nan),
-            "cv_rmse_g14": np.where(has, cv_g14, nan),
-            "mae": np.where(has, mae, nan),
-            "max_abs_error": np.where(has, max_abs, nan),
+            "mbe": np.where(has, -se / n, nan),
+            "nmbe": np.where(has & g14, -se / (dof * ybar), nan),
+            "cv_rmse_g14": np.where(has & g14, np.sqrt(se2 / dof) / ybar, nan),
+            "mae": np.where(has, ae.sum(axis=1) / n, nan),
+            "max_abs_error": np.where(has, ae.max(axis=1, initial=0.0), nan),
             "accuracy": np.where(has | np.array([a is not None for a, _ in accuracies]), acc, nan),
             "within_accuracy": has & np.isfinite(acc) & (rmse <= acc),
         }
-    return pd.DataFrame(cols, copy=False)
+    return pd.DataFrame(cols)
 
 
 def rmse(measured, simulated, axis=-1):

@@ -98,10 +98,32 @@ class Prepared:
         return self._shared["summary"]
 
     def measured_array(self) -> np.ndarray:
-        """``measured`` as a float array, shape (n_times, n_sensors), computed once."""
+        """``measured`` as a float array, one row per sensor: shape (n_sensors, n_times), computed once."""
         if "measured" not in self._shared:
-            self._shared["measured"] = self.measured.to_numpy(dtype=float)
+            self._shared["measured"] = np.ascontiguousarray(self.measured.to_numpy(dtype=float).T)
         return self._shared["measured"]
+
+    def measured_stats(self) -> dict:
+        """:func:`wallcal.metrics.measured_stats` of :meth:`measured_array`, computed once."""
+        if "stats" not in self._shared:
+            self._shared["stats"] = _metrics.measured_stats(self.measured_array())
+        return self._shared["stats"]
+
+    def sensor_index(self) -> pd.Index:
+        """The sensor names as a pandas Index (the simulated table's columns), built once."""
+        if "index" not in self._shared:
+            self._shared["index"] = pd.Index([s.name for s in self.study.sensors])
+        return self._shared["index"]
+
+    def signal_names(self):
+        """The sensor names as a pandas string array (the metrics table's first column), built once."""
+        if "names" not in self._shared:
+            self._shared["names"] = pd.array([s.name for s in self.study.sensors], dtype="str")
+        return self._shared["names"]
+
+    def accuracies(self) -> list[tuple]:
+        """(accuracy, accuracy_relative) of every sensor."""
+        return [(s.accuracy, s.accuracy_relative) for s in self.study.sensors]
 
     def with_wall(self, wall) -> Prepared:
         """The same data with another wall (same layer structure and probes)."""
@@ -109,6 +131,9 @@ class Prepared:
         new._shared = self._shared
         return new
 
+
+#: pandas >= 3 copies on write: a shallow copy handed to the user leaves the prepared data alone
+_COPY_ON_WRITE = int(pd.__version__.split(".")[0]) >= 3
 
 #: Prepared data kept by :func:`prepare` (the most recent ones).
 _CACHE_SIZE = 4
@@ -319,13 +344,14 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
             cols.append(out.temperatures[s.name])
         else:
             cols.append(out.fluxes[s.name if s.depth is not None else s.face])
-    sim = np.empty((len(prep.times), len(names)))
+    sim = np.empty((len(names), len(prep.times)))  # one row per sensor: the layout of a DataFrame's block
     for k, c in enumerate(cols):
-        sim[:, k] = c
-    simulated = pd.DataFrame(sim, index=prep.times, columns=names)
-    accuracies = [(s.accuracy, s.accuracy_relative) for s in study.sensors]
-    met = _metrics.table_arrays(names, prep.measured_array(), sim, accuracies)
-    skipped = np.isnan(prep.measured_array()).sum(axis=0)
+        sim[k] = c
+    simulated = pd.DataFrame(sim.T, index=prep.times, columns=prep.sensor_index(), copy=False)
+    met = _metrics.table_arrays(
+        prep.signal_names(), prep.measured_array(), sim, prep.accuracies(), prep.measured_stats()
+    )
+    skipped = np.isnan(prep.measured_array()).sum(axis=1)
     info = dict(out.info)
     info.update(
         {
@@ -344,10 +370,10 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     return SimulationResult(
         study=study,
         engine=engine,
-        measured=prep.measured.copy(),
+        measured=prep.measured.copy(deep=not _COPY_ON_WRITE),
         simulated=simulated,
         metrics=met,
-        summary=prep.summary().copy(),
+        summary=prep.summary().copy(deep=not _COPY_ON_WRITE),
         info=info,
         spikes=prep.measurements.spikes,
         bridged_gaps=prep.measurements.bridged_gaps,

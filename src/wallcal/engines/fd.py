@@ -379,6 +379,19 @@ class FDEngine(Engine):
             raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {scheme!r}")
         self.scheme = scheme
         self.name = f"fd-{scheme}"
+        self._walls: dict[int, tuple[Wall, tuple[str, ...], WallBatch]] = {}  # arrays of recently run walls
+
+    def _batch_of(self, wall: Wall, probes: tuple[str, ...]) -> WallBatch:
+        """The arrays of one wall, kept for the walls run last (walls are immutable: a repeated run of the
+        same wall object skips rebuilding them)."""
+        hit = self._walls.get(id(wall))
+        if hit is not None and hit[0] is wall and hit[1] == probes:
+            return hit[2]
+        batch = WallBatch.from_walls([wall], probes)
+        if len(self._walls) >= 8:
+            self._walls.pop(next(iter(self._walls)))
+        self._walls[id(wall)] = (wall, probes, batch)
+        return batch
 
     def prepare(self, inp: SimulationInput) -> PreparedFD:
         """Grid, boundary series, laws and output plan of ``inp`` (the grid follows C and the time step, or
@@ -416,8 +429,7 @@ class FDEngine(Engine):
             for face in inp.flux_faces:
                 rows[len(inp.probes) + (0 if face == "exterior" else 1)] = True
         else:
-            wall = inp.wall if walls is None else walls
-            batch = WallBatch.from_walls([wall], inp.probes[:n_user])
+            batch = self._batch_of(inp.wall if walls is None else walls, inp.probes[:n_user])
             rows = None
         depths = _with_depth_probes(prepared, batch)
         res = prepared.run_batch(batch.properties, depths, path=path, rows=rows)
@@ -456,7 +468,8 @@ def _with_depth_probes(prepared: PreparedFD, batch: WallBatch) -> np.ndarray:
     user = batch.probe_depths
     if user is None:
         user = np.tile([inp.wall.probe(p).depth for p in inp.probes[:n_user]], (batch.n, 1))
-    return np.hstack([np.asarray(user, dtype=float).reshape(batch.n, n_user), np.tile(fixed, (batch.n, 1))])
+    user = np.asarray(user, dtype=float).reshape(batch.n, n_user)
+    return np.hstack([user, np.tile(fixed, (batch.n, 1))]) if fixed else user
 
 
 def _depth_flux(prepared: PreparedFD, out: np.ndarray, props, name: str, depth: float, n_user: int) -> np.ndarray:
