@@ -113,6 +113,13 @@ def table(measured: pd.DataFrame, simulated: pd.DataFrame, accuracies: dict[str,
     return table_arrays(names, measured.to_numpy(dtype=float).T, simulated[names].to_numpy(dtype=float).T, acc)
 
 
+def _nan_where(bad: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` with NaN where ``bad`` (a copy only when needed)."""
+    if bad.any():
+        values = np.where(bad, np.nan, values)
+    return values
+
+
 def measured_stats(measured: np.ndarray, valid: np.ndarray | None = None) -> dict:
     """What the metrics need of the measured series alone (computed once for many simulated series).
 
@@ -162,30 +169,34 @@ def table_arrays(names, measured: np.ndarray, simulated: np.ndarray, accuracies,
     with np.errstate(divide="ignore", invalid="ignore"):
         e = np.where(ok, s - y, 0.0)
         se2 = np.einsum("kt,kt->k", e, e)
+        se = e.sum(axis=1)
+        ae = np.abs(e)
         rmse = np.sqrt(se2 / n)
         dof = n - G14_PARAMETERS
-        se = e.sum(axis=1)
-        g14 = (dof > 0) & (ybar != 0)
-        ae = np.abs(e)
         acc = [a if a is not None else (ar * y_eff[k] if ar else nan) for k, (a, ar) in enumerate(accuracies)]
         acc = np.array(acc, dtype=float)
         has = n > 0
+        no_g14 = ~has | (dof <= 0) | (ybar == 0)
         cols = {
             "signal": names
             if isinstance(names, pd.api.extensions.ExtensionArray)
             else pd.array(list(names), dtype="str"),
             "n": n.astype(np.int64),
-            "rmse": np.where(has, rmse, nan),
-            "rn_rmse": np.where(has & (rng > 0), rmse / rng, nan),
-            "cv_rmse_eff": np.where(has & (y_eff > 0), rmse / y_eff, nan),
-            "mbe": np.where(has, -se / n, nan),
-            "nmbe": np.where(has & g14, -se / (dof * ybar), nan),
-            "cv_rmse_g14": np.where(has & g14, np.sqrt(se2 / dof) / ybar, nan),
-            "mae": np.where(has, ae.sum(axis=1) / n, nan),
-            "max_abs_error": np.where(has, ae.max(axis=1, initial=0.0), nan),
-            "accuracy": np.where(has | np.array([a is not None for a, _ in accuracies]), acc, nan),
-            "within_accuracy": has & np.isfinite(acc) & (rmse <= acc),
+            "rmse": rmse,
+            "rn_rmse": _nan_where(~has | (rng <= 0), rmse / rng),
+            "cv_rmse_eff": _nan_where(~has | (y_eff <= 0), rmse / y_eff),
+            "mbe": -se / n,
+            "nmbe": _nan_where(no_g14, -se / (dof * ybar)),
+            "cv_rmse_g14": _nan_where(no_g14, np.sqrt(se2 / dof) / ybar),
+            "mae": ae.sum(axis=1) / n,
+            "max_abs_error": ae.max(axis=1, initial=0.0),
+            "accuracy": acc,
+            "within_accuracy": has & (rmse <= acc),
         }
+        if not has.all():  # a signal without a valid sample: NaN metrics, its stated accuracy kept
+            for c in ("rmse", "mbe", "mae", "max_abs_error"):
+                cols[c] = _nan_where(~has, cols[c])
+            cols["accuracy"] = _nan_where(~has & np.array([a is None for a, _ in accuracies]), acc)
     return pd.DataFrame(cols)
 
 

@@ -96,8 +96,6 @@ def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
         f" (warm-up from {ctx.prepared.inp.t0}); data file {Path(study.data.file).name}, "
         f"sha256 {m.sha256[:12]}."
     )
-    if ctx.prepared.note:
-        so.text.append(f"Note: {ctx.prepared.note}.")
     if len(m.spikes):
         m.spikes.to_csv(d / "spikes.csv", index=False)
         kept = "left out of the metrics." if study.data.remove_spikes else "kept (data.remove_spikes = false)."
