@@ -186,3 +186,25 @@ def test_energyplus_gives_the_flux_at_a_depth_like_fd(tmp_path):
     assert amplitude > 5.0
     # measured: 0.06 W/m2 at most over a 95 W/m2 swing
     assert np.abs(q_ep - q_fd).max() < 0.002 * amplitude, (np.abs(q_ep - q_fd).max(), amplitude)
+
+
+def test_prepared_data_are_reused_until_the_data_file_changes(tmp_path):
+    import os
+
+    import pandas as pd
+
+    from test_flux_at_depth import study as flux_study
+
+    st = flux_study(tmp_path, 0.05)
+    first = prepare(st)
+    assert prepare(st) is first and prepare(st, time_step=120.0) is not first
+    r1 = simulate(st)
+    path = tmp_path / "d.csv"
+    df = pd.read_csv(path)
+    df["Te"] += 1.0
+    df.to_csv(path, index=False)
+    os.utime(path, ns=(os.stat(path).st_atime_ns, os.stat(path).st_mtime_ns + 10**9))
+    again = prepare(st)
+    assert again is not first
+    assert np.allclose(again.inp.exterior.values, first.inp.exterior.values + 1.0)
+    assert not simulate(st).simulated["P"].equals(r1.simulated["P"])

@@ -105,7 +105,6 @@ __all__ = [
     "Capabilities",
     "Engine",
     "EngineChoice",
-    "EngineError",
     "EngineOptions",
     "EngineOutput",
     "SimulationInput",

@@ -1,6 +1,7 @@
 """The finite-volume engine ``fd`` (``fd-cn``: Crank-Nicolson, ``fd-implicit``: fully implicit).
 
-Build once, run many: :meth:`FDEngine.prepare` turns a :class:`SimulationInput`
+The engine contract (:mod:`wallcal.engines.base`) on a build-once, run-many core:
+:meth:`FDEngine.prepare` turns a :class:`SimulationInput`
 into a :class:`PreparedFD` (grid, boundary series, output positions, conductivity
 laws); :meth:`PreparedFD.run_batch` then runs any number of candidate walls
 (same layer structure, other properties or probe depths) in one call of the
@@ -29,8 +30,9 @@ Scheme details
 - Outputs: probe temperatures exact on a node and linear between nodes; face
   heat fluxes from the surface half-node energy balance
   ``q_e = g_01 (T_0 - T_1) + c_0 dT_0/dt`` (central difference of the imposed
-  series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces.
-  Outputs between grid times are interpolated linearly in time.
+  series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces. A heat flux inside the
+  wall (``SimulationInput.flux_depths``) comes from three probes the engine adds around the depth
+  (:mod:`wallcal.engines.depthflux`). Outputs between grid times are interpolated linearly in time.
 - Paths: walls with constant conductances, heat capacity at every unknown node
   and no stiff link take the exact modal fast path (:mod:`wallcal.engines.modal`);
   the others the general tridiagonal path (:mod:`wallcal.engines.kernels`).
