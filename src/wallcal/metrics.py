@@ -38,6 +38,7 @@ METRIC_COLUMNS = (
     "within_accuracy",
 )
 G14_PARAMETERS = 1
+_COLUMN_INDEX = pd.Index(METRIC_COLUMNS)
 
 
 def compute(measured, simulated, accuracy: float | None = None, accuracy_relative: float | None = None) -> dict:
@@ -197,7 +198,10 @@ def table_arrays(names, measured: np.ndarray, simulated: np.ndarray, accuracies,
             for c in ("rmse", "mbe", "mae", "max_abs_error"):
                 cols[c] = _nan_where(~has, cols[c])
             cols["accuracy"] = _nan_where(~has & np.array([a is None for a, _ in accuracies]), acc)
-    return pd.DataFrame(cols)
+    # built with integer column labels, then named: pandas infers nothing from string labels that way
+    frame = pd.DataFrame(dict(enumerate(cols.values())))
+    frame.columns = _COLUMN_INDEX
+    return frame
 
 
 def rmse(measured, simulated, axis=-1):
