@@ -135,8 +135,9 @@ class Prepared:
 #: pandas >= 3 copies on write: a shallow copy handed to the user leaves the prepared data alone
 _COPY_ON_WRITE = int(pd.__version__.split(".")[0]) >= 3
 
-#: Prepared data kept by :func:`prepare` (the most recent ones).
-_CACHE_SIZE = 4
+#: Prepared data kept by :func:`prepare`: the two most recent (each holds its boundary series on the
+#: engine grid, 0.5 GB for ten years at 10 s: a few, not many).
+_CACHE_SIZE = 2
 _cache: OrderedDict = OrderedDict()
 
 
