@@ -50,7 +50,8 @@ def _input(**kw):
 def test_every_engine_declares_its_capabilities_and_implements_the_contract(name):
     cls = engine_class(name)
     assert isinstance(cls.capabilities, Capabilities)
-    assert cls.prepare is not Engine.prepare and cls.run is not Engine.run
+    assert cls.prepare is not Engine.prepare
+    assert cls.run is not Engine.run or cls.run_wall is not Engine.run_wall
     eng = get_engine(name)
     assert eng.name == name
     assert eng.check_time_step(60.0) is None
@@ -208,3 +209,35 @@ def test_prepared_data_are_reused_until_the_data_file_changes(tmp_path):
     assert again is not first
     assert np.allclose(again.inp.exterior.values, first.inp.exterior.values + 1.0)
     assert not simulate(st).simulated["P"].equals(r1.simulated["P"])
+
+
+class _OneAtATime(Engine):
+    """A plain engine in a few lines: capabilities, prepare and run_wall (here: the fd engine, wall by wall)."""
+
+    name = "one-at-a-time"
+    capabilities = Capabilities(
+        batches=False, conductivity_laws=True, flux_at_depth=True, contact_resistance=True, massless_layers=True
+    )
+
+    def prepare(self, inp):
+        return FDEngine(inp.scheme).prepare(inp)
+
+    def run_wall(self, prepared, wall):
+        return FDEngine(prepared.inp.scheme).run(prepared, wall)
+
+
+def test_an_engine_that_runs_walls_one_at_a_time_gets_lists_and_batches_from_the_contract():
+    inp = _input()
+    eng = _OneAtATime()
+    walls = _walls(inp.wall, n=3)
+    prep = eng.prepare(inp)
+    ref = FDEngine("cn").run(FDEngine("cn").prepare(inp), walls)
+    for batch in (walls, WallBatch.from_walls(walls, inp.probes)):
+        out = eng.run(prep, batch)
+        assert isinstance(out, BatchOutput) and len(out.info["runs"]) == 3
+        for k in inp.probes:
+            np.testing.assert_allclose(out.temperatures[k], ref.temperatures[k], rtol=0, atol=1e-12)
+        for k in inp.flux_faces:
+            np.testing.assert_allclose(out.fluxes[k], ref.fluxes[k], rtol=0, atol=1e-12)
+    single = eng.run(inp)  # a SimulationInput is prepared on the fly
+    assert np.array_equal(single.temperatures[inp.probes[0]], FDEngine("cn").run(inp).temperatures[inp.probes[0]])

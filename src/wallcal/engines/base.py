@@ -1,6 +1,8 @@
 """The engine contract: what every engine receives, declares, and returns.
 
-Every engine (``fd-cn``, ``fd-implicit``, ``energyplus``...) is an :class:`Engine`:
+Every engine (``fd-cn``, ``fd-implicit``, ``energyplus``...) is an :class:`Engine`. An engine that runs
+walls one at a time implements ``capabilities``, ``prepare`` and ``run_wall`` (and ``check_time_step``
+when not every step is allowed); the default ``run`` does the rest. Callers use:
 
 - ``engine.capabilities`` (:class:`Capabilities`) says what it can do: batches of
   candidate walls, lambda(T) laws, flux at a depth, contact resistances, no-mass
@@ -300,9 +302,9 @@ CAPABILITY_WORDS = {
 
 
 class Engine:
-    """The engine contract (see the module docstring). Subclasses set ``name`` and ``capabilities``
-    and implement :meth:`prepare` and :meth:`run`; :meth:`check_time_step` when not every time
-    step is allowed."""
+    """The engine contract (see the module docstring). Subclasses set ``name`` and ``capabilities`` and
+    implement :meth:`prepare` and :meth:`run_wall` (or :meth:`run`, for batches in one call);
+    :meth:`check_time_step` when not every time step is allowed."""
 
     name = "base"
     capabilities = Capabilities(
@@ -353,10 +355,31 @@ class Engine:
         """The work that depends only on ``inp``; the result has ``inp`` as attribute ``inp``."""
         raise NotImplementedError
 
-    def run(self, prepared, walls: Wall | Sequence[Wall] | WallBatch | None = None):  # pragma: no cover
-        """Run the prepared wall (``walls`` None), another wall (a :class:`Wall`: -> :class:`EngineOutput`)
-        or a batch (a list of walls or a :class:`WallBatch`: -> :class:`BatchOutput`)."""
+    def run_wall(self, prepared, wall: Wall) -> EngineOutput:  # pragma: no cover - interface
+        """Run one wall (the input's or another with the same layer structure and probes): what an engine
+        that runs walls one at a time implements; :meth:`run` calls it."""
         raise NotImplementedError
+
+    def run(self, prepared, walls: Wall | Sequence[Wall] | WallBatch | None = None):
+        """Run the prepared wall (``walls`` None) or another wall (a :class:`Wall`): -> :class:`EngineOutput`;
+        a batch (a list of walls or a :class:`WallBatch`): -> :class:`BatchOutput`.
+
+        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly). This default runs the walls
+        one after the other through :meth:`run_wall`; engines with ``batches`` override it.
+        """
+        if isinstance(prepared, SimulationInput):
+            prepared = self.prepare(prepared)
+        inp = prepared.inp
+        if not is_batch(walls):
+            return self.run_wall(prepared, inp.wall if walls is None else walls)
+        if isinstance(walls, WallBatch):
+            walls = walls.walls(inp.wall, inp.probes)
+        outs = [self.run_wall(prepared, w) for w in walls]
+        return BatchOutput(
+            temperatures={k: np.stack([o.temperatures[k] for o in outs]) for k in inp.probes},
+            fluxes={k: np.stack([o.fluxes[k] for o in outs]) for k in outs[0].fluxes} if outs else {},
+            info={"engine": self.name, "runs": [o.info for o in outs]},
+        )
 
     def simulate(self, inp: SimulationInput) -> EngineOutput:
         """``run(prepare(inp))``: one run of the input's wall."""

