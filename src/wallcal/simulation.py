@@ -417,11 +417,17 @@ def simulate(
     wall : Wall, optional
         Run this wall instead of the study's (same probes).
     prepared : Prepared, optional
-        Reuse prepared data (e.g. from :func:`prepare`).
+        Reuse prepared data (e.g. from :func:`prepare`); its engine runs (``engine``, if given, must be it).
 
     Returns
     -------
     SimulationResult
+
+    Notes
+    -----
+    A repeated call with the same study object reuses the prepared data (and the engine's prepared
+    state) while the data files are unchanged (see :func:`prepare`): it costs the engine run and
+    forming the tables.
     """
     if prepared is not None:
         if engine is not None and engine != prepared.engine_name:
