@@ -241,3 +241,13 @@ def test_an_engine_that_runs_walls_one_at_a_time_gets_lists_and_batches_from_the
             np.testing.assert_allclose(out.fluxes[k], ref.fluxes[k], rtol=0, atol=1e-12)
     single = eng.run(inp)  # a SimulationInput is prepared on the fly
     assert np.array_equal(single.temperatures[inp.probes[0]], FDEngine("cn").run(inp).temperatures[inp.probes[0]])
+
+
+def test_grid_study_of_an_energyplus_study_runs_fd_cn_and_says_why(example_study):
+    from wallcal.analysis.gridstudy import grid_study
+
+    study = example_study.replace(simulation=dataclasses.replace(example_study.simulation, engine="energyplus"))
+    res = grid_study(study, time_steps=(60, 300), grid_constants=(2,), progress=False)
+    assert res.engine == "fd-cn"
+    assert "time_step = 300 s gives 12" in res.note and "the grid study uses fd-cn" in res.note
+    assert res.note in res.summary() and res.to_json()["engine"] == "fd-cn"
