@@ -26,30 +26,28 @@ from .base import (
 ENGINE_NAMES = ("fd-cn", "fd-implicit", "energyplus")
 
 
-def get_engine(name: str) -> Engine:
-    """Return the engine called ``name``."""
+def _registered(name: str) -> tuple[type[Engine], dict]:
+    """The class of engine ``name`` and its constructor arguments (the one list of engines)."""
     if name in ("fd-cn", "fd-implicit"):
         from .fd import FDEngine
 
-        return FDEngine("cn" if name == "fd-cn" else "implicit")
+        return FDEngine, {"scheme": scheme_of(name)}
     if name == "energyplus":
         from .energyplus import EnergyPlusEngine
 
-        return EnergyPlusEngine()
+        return EnergyPlusEngine, {}
     raise StudyError([f"engine: unknown engine {name!r}; {closest(name, ENGINE_NAMES)}"])
+
+
+def get_engine(name: str) -> Engine:
+    """Return the engine called ``name``."""
+    cls, kwargs = _registered(name)
+    return cls(**kwargs)
 
 
 def engine_class(name: str) -> type[Engine]:
     """The class of engine ``name`` (its capabilities without building it)."""
-    if name in ("fd-cn", "fd-implicit"):
-        from .fd import FDEngine
-
-        return FDEngine
-    if name == "energyplus":
-        from .energyplus import EnergyPlusEngine
-
-        return EnergyPlusEngine
-    raise StudyError([f"engine: unknown engine {name!r}; {closest(name, ENGINE_NAMES)}"])
+    return _registered(name)[0]
 
 
 def scheme_of(name: str) -> str:
