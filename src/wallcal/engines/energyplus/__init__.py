@@ -116,8 +116,8 @@ class EnergyPlusEngine(Engine):
         boundary_types=("surface_temperature",),
         any_time_step=False,
         substitute="fd-cn",
-        substitute_verified="verified against EnergyPlus CondFD: within 2e-5 K RMS at the probes on the same grid, "
-        "docs/energyplus.md",
+        substitute_verified="verified against EnergyPlus CondFD: at most 2.1e-5 K RMS at the probes on the same "
+        "grid, 1e-3 K on each engine's default grid, docs/energyplus.md",
     )
 
     def __init__(
