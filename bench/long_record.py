@@ -61,7 +61,6 @@ def child(months: float, path: str) -> dict:
         grid_constant=2.0,
         node_rule="wallcal",
         scheme="cn",
-        options={},
     )
     eng = FDEngine("cn")
     # compile (and warm caches) on a short record first, so that the timing is the run's own

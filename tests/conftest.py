@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from wallcal.engines.base import BoundaryInput, SimulationInput
+from wallcal.engines.base import BoundaryInput, EngineOptions, SimulationInput
 from wallcal.wall import Layer, Probe, Wall
 
 REPO = Path(__file__).resolve().parents[1]
@@ -73,7 +73,7 @@ def make_input(
         grid_constant=C,
         node_rule=rule,
         scheme=scheme,
-        options=dict(options),
+        options=EngineOptions(**options),
     )
 
 

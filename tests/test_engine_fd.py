@@ -416,7 +416,7 @@ def test_lambda_T_refactorisation_is_invisible():
     inp = make_input(wall, 5 + 20 * np.sin(2 * np.pi * t / 86400), np.full(2881, 20.0), 60.0, out_every=5)
     ref = FDEngine("cn").prepare(inp).run_walls([wall])
     assert ref.path == "general"
-    inp_every = inp.__class__(**{**inp.__dict__, "options": {**inp.options, "refactor_drift": 0.0}})
+    inp_every = inp.replace(options=inp.options.replace(refactor_drift=0.0))
     every = FDEngine("cn").prepare(inp_every).run_walls([wall])
     diff = np.abs(every.out[0, :4] - ref.out[0, :4]).max()
     assert diff < 1e-4, diff

@@ -30,3 +30,27 @@ def test_relative_accuracy_and_nan_skipped():
     assert m["n"] == 3
     assert m["accuracy"] == pytest.approx(0.3)
     assert m["within_accuracy"]
+
+
+@pytest.mark.parametrize("case", ["plain", "missing simulated", "zero range and mean"])
+def test_table_of_arrays_equals_compute_per_signal(case):
+    """The one-pass table (all signals at once, measured statistics reused) gives compute()'s figures."""
+    import pandas as pd
+
+    from wallcal import metrics
+
+    rng = np.random.default_rng(0)
+    y = rng.normal(10, 3, (500, 5))
+    s = y + rng.normal(0, 0.3, (500, 5))
+    y[3, 0] = np.nan
+    y[:, 3] = np.nan  # no valid sample
+    y[:, 4] = s[:, 4] = 2.0  # constant: zero range
+    if case == "missing simulated":
+        s[7, 1] = np.nan
+    if case == "zero range and mean":
+        y[:, 2] = 0.0
+    acc = [(0.5, None), (None, 0.05), (None, None), (0.1, None), (None, 0.1)]
+    names = ["a", "b", "c", "d", "e"]
+    got = metrics.table_arrays(names, y.T, s.T, acc, metrics.measured_stats(y.T))
+    rows = [{"signal": n, **metrics.compute(y[:, k], s[:, k], *acc[k])} for k, n in enumerate(names)]
+    pd.testing.assert_frame_equal(got, pd.DataFrame(rows, columns=list(metrics.METRIC_COLUMNS)), rtol=1e-12)

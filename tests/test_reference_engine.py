@@ -256,7 +256,7 @@ def test_flux_at_depth_is_the_schemes_flux(seed):
     of the scheme)."""
     inp = make_case(seed)
     tables = any(layer.conductivity_table is not None for layer in inp.wall.layers)
-    disc_x = ReferenceEngine().simulate(inp).disc.x
+    disc_x = ReferenceEngine().solve(inp).disc.x
     rng = np.random.default_rng(seed)
     inside = sorted(
         float(rng.uniform(disc_x[j], disc_x[j + 1])) for j in range(len(disc_x) - 1) if disc_x[j + 1] > disc_x[j]
@@ -264,7 +264,7 @@ def test_flux_at_depth_is_the_schemes_flux(seed):
     a, b = inside[0], inside[-1]
     nodes = tuple(float(x) for x in disc_x[1:-1])
     eng = ReferenceEngine()
-    res = eng.simulate(inp, flux_depths=(0.0, inp.wall.thickness, a, b, *nodes))
+    res = eng.solve(inp, flux_depths=(0.0, inp.wall.thickness, a, b, *nodes))
     np.testing.assert_array_equal(res.depth_fluxes[0.0], res.fluxes["exterior"])
     np.testing.assert_array_equal(res.depth_fluxes[inp.wall.thickness], res.fluxes["interior"])
     if not tables:
@@ -293,7 +293,7 @@ def test_flux_at_depth_inside_a_uniform_layer_is_the_mean_of_the_links():
     inp = make_case(3)
     inp = dataclasses.replace(inp, wall=Wall(layers=(Layer("a", 0.2, 1.0, 2000.0, 1000.0),)), probes=())
     eng = ReferenceEngine()
-    res = eng.simulate(inp)
+    res = eng.solve(inp)
     x = res.disc.x
     from wallcal.engines.reference import flux_at_depth
 
@@ -342,7 +342,7 @@ def test_reference_steady_state_is_exact_with_a_table_law():
         probes=(),
         grid_constant=2.0,
     )
-    res = ReferenceEngine().simulate(inp)
+    res = ReferenceEngine().solve(inp)
     exact = _kirchhoff_profile(layer, 0.0, 25.0, res.disc.x)
     np.testing.assert_allclose(res.grid_temperatures[0], exact, rtol=0, atol=1e-9)
     np.testing.assert_allclose(res.grid_temperatures[-1], exact, rtol=0, atol=1e-9)
@@ -362,7 +362,8 @@ def test_run_walls_loops_over_candidates():
             )
         )
     eng = ReferenceEngine()
-    outs = eng.run_walls(inp, walls)
+    batch = eng.run(inp, walls)
+    outs = [batch.output(c) for c in range(len(walls))]
     prep = FDEngine("cn").prepare(inp)
     res = prep.run_walls(walls, path="general")
     for c, out in enumerate(outs):
@@ -420,7 +421,7 @@ def test_flux_at_depth_is_uniform_in_a_steady_state(seed):
     inp = dataclasses.replace(inp, exterior=ext, interior=intr, output_positions=np.linspace(0, n, 5))
     w = inp.wall
     depths = (*(float(x) for x in w.interfaces), *np.random.default_rng(seed).uniform(0, w.thickness, 5))
-    res = ReferenceEngine().simulate(inp, flux_depths=depths)
+    res = ReferenceEngine().solve(inp, flux_depths=depths)
     q_ext = res.fluxes["exterior"]
     for d in depths:
         np.testing.assert_allclose(res.depth_fluxes[float(d)], q_ext, rtol=1e-9, atol=1e-9)

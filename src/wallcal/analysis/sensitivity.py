@@ -153,12 +153,12 @@ def sensitivity(
     from ..calibration.objective import Evaluator
     from ..calibration.space import parse_space
     from ..errors import StudyError, closest, require
-    from ..simulation import prepare
+    from ..simulation import BATCH_NEEDS, prepare
 
     if method not in METHODS:
         raise StudyError([f"--method: unknown method {method!r}; {closest(method, METHODS)}"])
     space = space or parse_space(study)
-    prepared = prepared or prepare(study, "fd-cn" if study.simulation.engine == "energyplus" else None)
+    prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the sensitivity analysis")
     ev = Evaluator(prepared, space)
     prog = Progress(f"sensitivity ({method})", enabled=progress)
     names = space.names
@@ -276,5 +276,5 @@ def sensitivity(
         evaluations=ev.evaluations,
         seconds=seconds,
         objective=space.objective,
-        notes=notes,
+        notes=([prepared.note] if prepared.note else []) + notes,
     )

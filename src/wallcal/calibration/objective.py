@@ -13,23 +13,23 @@ valid measured samples t (missing values and spikes excluded):
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
 
-from ..engines.fd import FDEngine, PreparedFD
+from ..engines.base import WallBatch
 from ..simulation import Prepared
 from .space import ParameterSpace
 
 
 class Evaluator:
-    """Runs candidate parameter vectors through the batched engine and scores them.
+    """Runs candidate parameter vectors through the engine's batch interface and scores them.
 
     Parameters
     ----------
     prepared : Prepared
-        The study's data on the engine grid (:func:`wallcal.simulation.prepare`).
+        The study's data on the engine grid (:func:`wallcal.simulation.prepare`); its engine must
+        run batches (prepare with ``needs=("batches",)``).
     space : ParameterSpace
     """
 
@@ -37,48 +37,43 @@ class Evaluator:
         self.prepared = prepared
         self.space = space
         study = prepared.study
-        inp = prepared.inp
-        opts = dict(inp.options)
-        opts["exponential_layers"] = frozenset(
-            i for p in space.parameters if p.property == "conductivity_temperature_coefficient" for i in p.layers
+        if not prepared.engine.capabilities.batches:
+            from ..errors import EngineError
+
+            raise EngineError(
+                f"the {prepared.engine_name} engine runs no batches: prepare the data with needs=('batches',)"
+            )
+        # the engine input asks for the targets only; layers whose temperature coefficient or contact
+        # resistance is a parameter get the exponential law and a contact link even at zero
+        sensors = [study.sensor(name) for name in space.targets]
+        self.inp = prepared.inp.replace(
+            probes=tuple(s.name for s in sensors if s.quantity == "temperature"),
+            flux_faces=tuple(dict.fromkeys(s.face for s in sensors if s.quantity == "heat_flux" and s.depth is None)),
+            flux_depths=tuple((s.name, s.depth) for s in sensors if s.quantity == "heat_flux" and s.depth is not None),
+            options=prepared.inp.options.replace(
+                exponential_layers=frozenset(
+                    i
+                    for p in space.parameters
+                    if p.property == "conductivity_temperature_coefficient"
+                    for i in p.layers
+                ),
+                contact_layers=space.contact_layers,
+            ),
         )
-        inp = dataclasses.replace(inp, options=opts)
-        self.engine: PreparedFD = FDEngine(inp.scheme).prepare(inp, contact_layers=space.contact_layers)
+        self.engine = prepared.engine
+        self.engine_prepared = self.engine.prepare(self.inp)
         self.wall = study.wall
-        # rows of the engine output for each target
-        probe_rows = {name: k for k, name in enumerate(self.engine.probe_names)}
-        npr = len(self.engine.probe_names)
-        self.rows = []
+        self.keys = []  # (kind, key) of each target in the engine output
         self.y = []
         self.mask = []
         self.weights = []
         self.scale = []
-        self.depth_fluxes = []  # (target index, rows of the three hidden probes, half-interval geometry)
-        for name in space.targets:
-            s = study.sensor(name)
-            if s.quantity == "heat_flux" and s.depth is not None:
-                from ..simulation import flux_probe_depths, flux_probe_names
-
-                rows3 = [probe_rows[n] for n in flux_probe_names(name)]
-                xs = flux_probe_depths(inp.wall, s.depth)
-                halves = []
-                for a, b in ((0, 1), (1, 2)):
-                    if xs[b] > xs[a]:
-                        li = int(
-                            np.clip(
-                                np.searchsorted(inp.wall.interfaces, 0.5 * (xs[a] + xs[b]), side="right") - 1,
-                                0,
-                                len(inp.wall.layers) - 1,
-                            )
-                        )
-                        halves.append((rows3[a], rows3[b], xs[b] - xs[a], li))
-                self.depth_fluxes.append((len(self.rows), halves))
-                self.rows.append(rows3[1])  # placeholder row, replaced by the flux in simulate()
-            elif s.quantity == "heat_flux":
-                self.rows.append(npr + (0 if s.face == "exterior" else 1))
+        for s in sensors:
+            if s.quantity == "heat_flux":
+                self.keys.append(("fluxes", s.name if s.depth is not None else s.face))
             else:
-                self.rows.append(probe_rows[name])
-            y = prepared.measured[name].to_numpy(dtype=float)
+                self.keys.append(("temperatures", s.name))
+            y = prepared.measured[s.name].to_numpy(dtype=float)
             ok = np.isfinite(y)
             self.y.append(np.where(ok, y, 0.0))
             self.mask.append(ok)
@@ -89,11 +84,6 @@ class Evaluator:
                 self.scale.append(acc)
             else:
                 self.scale.append(1.0)
-        self.wanted_rows = np.zeros(npr + 2, dtype=bool)
-        self.wanted_rows[self.rows] = True
-        for _, halves in self.depth_fluxes:
-            for ra, rb, _h, _li in halves:
-                self.wanted_rows[[ra, rb]] = True
         self.y = np.array(self.y)
         self.mask = np.array(self.mask)
         self.n_valid = self.mask.sum(axis=1)
@@ -107,33 +97,17 @@ class Evaluator:
         X = np.atleast_2d(X)
         t = time.perf_counter()
         props, depths = self.space.properties(self.wall, X)
-        pd_ = self.engine.probe_depth_matrix(n=X.shape[0])
-        for k, name in enumerate(self.engine.probe_names):
+        probes = self.inp.probes
+        pd_ = np.tile([self.inp.wall.probe(p).depth for p in probes], (X.shape[0], 1)).astype(float)
+        for k, name in enumerate(probes):
             if name in depths:
                 pd_[:, k] = depths[name]
-        res = self.engine.run_batch(props, pd_, rows=self.wanted_rows)
+        out = self.engine.run(self.engine_prepared, WallBatch(props, pd_))
+        sim = np.empty((X.shape[0], len(self.keys), self.y.shape[1]))
+        for k, (kind, key) in enumerate(self.keys):
+            sim[:, k] = getattr(out, kind)[key]
         self.evaluations += X.shape[0]
         self.seconds += time.perf_counter() - t
-        sim = res.out[:, self.rows, :]
-        for k, halves in self.depth_fluxes:  # as simulation.flux_at_depth, with each candidate's properties
-            qs, bs = [], []
-            for ra, rb, h, li in halves:
-                ta, tb = res.out[:, ra, :], res.out[:, rb, :]
-                lam = props.conductivity[:, li, None]
-                if self.wall.layers[li].is_massless:
-                    lam = self.wall.layers[li].thickness / props.thermal_resistance[:, li, None]
-                    bs.append(np.zeros((len(X), 1)))
-                else:
-                    bs.append(np.sqrt(props.conductivity[:, li, None] * props.volumetric_heat_capacity[:, li, None]))
-                    f = props.temperature_coefficient[:, li, None]
-                    lam = lam * np.exp(f * (0.5 * (ta + tb) - props.reference_temperature[:, li, None]))
-                qs.append(lam * (ta - tb) / h)
-            if len(qs) == 1:
-                sim[:, k, :] = qs[0]
-            elif halves[0][3] == halves[1][3] or not (bs[0] + bs[1]).all():
-                sim[:, k, :] = 0.5 * (qs[0] + qs[1])
-            else:
-                sim[:, k, :] = (bs[1] * qs[0] + bs[0] * qs[1]) / (bs[0] + bs[1])
         return sim
 
     def errors(self, X: np.ndarray) -> np.ndarray:
@@ -180,12 +154,12 @@ class Evaluator:
         """
         e = self.errors(X)
         self._last_cse = np.einsum("ctk,ctk->ct", e, e)
-        w = np.ones(len(self.rows))
+        w = np.ones(len(self.keys))
         if self.space.objective == "weighted_cse":
             w = np.asarray(self.weights, dtype=float)
         elif self.space.objective in ("weighted_rmse", "rmse_accuracy"):
-            sc = np.asarray(self.scale if self.space.objective == "rmse_accuracy" else np.ones(len(self.rows)))
-            ww = np.asarray(self.weights) if self.space.objective == "weighted_rmse" else np.ones(len(self.rows))
+            sc = np.asarray(self.scale if self.space.objective == "rmse_accuracy" else np.ones(len(self.keys)))
+            ww = np.asarray(self.weights) if self.space.objective == "weighted_rmse" else np.ones(len(self.keys))
             w = ww / (sc**2 * self.n_valid)
         r = e * np.sqrt(w)[None, :, None]
         return r.reshape(e.shape[0], -1)  # missing samples carry a zero residual

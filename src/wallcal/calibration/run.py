@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import StudyError, WallcalError
-from ..simulation import Prepared, prepare, simulate
+from ..simulation import BATCH_NEEDS, Prepared, prepare, simulate
 from ..study import Study, dump_wall, load_wall
 from . import algorithms as alg
 from .objective import Evaluator
@@ -212,9 +212,7 @@ def calibrate(
     user_settings.update(settings or {})
     sett = alg.settings_for(algorithm, user_settings)
     seed = space.seed if seed is None else int(seed)
-    prepared = prepared or prepare(study, "fd-cn" if study.simulation.engine == "energyplus" else None)
-    if prepared.inp.scheme not in ("cn", "implicit"):
-        raise WallcalError("calibration runs the fd engine")
+    prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="calibration")
     ev = Evaluator(prepared, space)
 
     def f(U):
@@ -284,7 +282,7 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
     met = pd.concat([base_res.metrics.assign(case="base"), opt_res.metrics.assign(case="calibrated")])
     met = met[["case"] + [c for c in met.columns if c != "case"]]
     floors = {}
-    notes = []
+    notes = [prepared.note] if prepared.note else []
     if space.reference_wall:
         ref_wall = load_wall(space.reference_wall)  # resolved against the study's folder at load
         ref_res = simulate(study, prepared=prepared, wall=ref_wall)

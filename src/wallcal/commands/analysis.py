@@ -215,6 +215,8 @@ def run_identifiability(args) -> int:
         + "; lag-1 autocorrelation: "
         + ", ".join(f"{k} {v:.3f}" for k, v in a.phi.items())
     )
+    for note in res.notes:
+        print(f"note: {note}")
     print()
     print("Flat directions (the data cannot move along these):")
     for key, r in a.flat.iterrows():

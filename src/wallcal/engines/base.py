@@ -1,22 +1,43 @@
-"""The engine interface: what every engine receives and returns.
+"""The engine contract: what every engine receives, declares, and returns.
 
-An engine turns a :class:`SimulationInput` (a wall, boundary series already on
-the engine's time grid, the times at which outputs are wanted) into an
-:class:`EngineOutput` (probe temperatures and face heat fluxes at those times).
-Data preparation (reading files, interpolating, choosing the period) happens
-once, outside the engines, in :mod:`wallcal.simulation`.
+Every engine (``fd-cn``, ``fd-implicit``, ``energyplus``...) is an :class:`Engine`. An engine that runs
+walls one at a time implements ``capabilities``, ``prepare`` and ``run_wall`` (and ``check_time_step``
+when not every step is allowed); the default ``run`` does the rest. Callers use:
+
+- ``engine.capabilities`` (:class:`Capabilities`) says what it can do: batches of
+  candidate walls, lambda(T) laws, flux at a depth, contact resistances, no-mass
+  layers, which boundary types; ``engine.check_time_step(dt)`` says why a time step
+  is refused (None when allowed), and ``engine.problems(inp)`` lists everything in an
+  input the engine cannot run (``engine.check(inp)`` raises them as one
+  :class:`~wallcal.errors.EngineError`).
+- ``prepared = engine.prepare(inp)`` does the work that depends only on the input
+  (grids, boundary series, output plans); ``prepared.inp`` is the input.
+- ``engine.run(prepared)`` runs the prepared wall and returns an :class:`EngineOutput`;
+  ``engine.run(prepared, wall)`` another wall with the same layer structure;
+  ``engine.run(prepared, walls)`` with a list of walls or a :class:`WallBatch` runs a
+  batch and returns a :class:`BatchOutput` (engines without ``batches`` run the walls
+  one after the other).
+
+Typed options (:class:`EngineOptions`) replace free dictionaries. Data preparation
+(reading files, interpolating, choosing the period) happens once, outside the
+engines, in :mod:`wallcal.simulation`. Choosing an engine for a task that needs a
+capability (calibration needs batches) happens in one place:
+:func:`wallcal.engines.engine_for`.
 
 Sign convention: heat flux densities are positive towards the interior at both
-faces (see :mod:`wallcal.wall`).
+faces and inside the wall (see :mod:`wallcal.wall`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
+from ..errors import EngineError
+from ..grid import PropertyArrays
 from ..wall import Wall
 
 BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "heat_flux")
@@ -48,6 +69,40 @@ class BoundaryInput:
 
 
 @dataclass(frozen=True)
+class EngineOptions:
+    """Numerical options of a run (every engine receives them; each uses those that apply to it).
+
+    Parameters
+    ----------
+    stiff_limit : float
+        fd engines: links with ``g dt (1/c_a + 1/c_b)`` above this are fully implicit [-].
+    refactor_drift : float
+        fd engines, lambda(T): refactorise the matrix when a conductance drifts this much
+        from the factorised one (fraction; 0: every step).
+    exponential_layers : frozenset of int
+        Layer indices run with the exponential lambda(T) law even at a zero coefficient
+        (their coefficient is a calibration parameter).
+    contact_layers : frozenset of int
+        Layer indices whose interior interface gets a contact link even at zero contact
+        resistance (the resistance is a calibration parameter).
+    grid_time_step : float or None
+        Build the spatial grid for this time step [s] instead of the run's (convergence in
+        time on a fixed grid).
+    """
+
+    stiff_limit: float = 10.0
+    refactor_drift: float = 0.02
+    exponential_layers: frozenset[int] = frozenset()
+    contact_layers: frozenset[int] = frozenset()
+    grid_time_step: float | None = None
+
+    def replace(self, **changes) -> EngineOptions:
+        import dataclasses
+
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
 class SimulationInput:
     """Everything an engine needs for one run (and for a batch of candidate walls).
 
@@ -68,6 +123,9 @@ class SimulationInput:
         Probe names whose temperatures are wanted.
     flux_faces : tuple of str
         Faces (``"exterior"``/``"interior"``) whose heat flux densities are wanted.
+    flux_depths : tuple of (str, float)
+        Heat flux densities wanted inside the wall: (name, depth from the exterior face [m]);
+        the output's ``fluxes`` carries them under their names.
     grid_constant : float
         C = dx^2 / (alpha dt) [-].
     node_rule : str
@@ -76,6 +134,7 @@ class SimulationInput:
         ``"cn"`` (Crank-Nicolson) or ``"implicit"`` (fully implicit).
     initial : str
         ``"steady"``: start from the steady profile of the first boundary values.
+    options : EngineOptions
     """
 
     wall: Wall
@@ -86,15 +145,21 @@ class SimulationInput:
     output_positions: np.ndarray
     probes: tuple[str, ...]
     flux_faces: tuple[str, ...] = ()
+    flux_depths: tuple[tuple[str, float], ...] = ()
     grid_constant: float = 2.0
     node_rule: str = "wallcal"
     scheme: str = "cn"
     initial: str = "steady"
-    options: dict = field(default_factory=dict)
+    options: EngineOptions = EngineOptions()
 
     @property
     def n_steps(self) -> int:
         return len(self.exterior.values) - 1
+
+    def replace(self, **changes) -> SimulationInput:
+        import dataclasses
+
+        return dataclasses.replace(self, **changes)
 
 
 @dataclass
@@ -106,7 +171,8 @@ class EngineOutput:
     temperatures : dict[str, ndarray]
         Probe name -> temperature [degC] at the output times.
     fluxes : dict[str, ndarray]
-        Face -> heat flux density [W/m2], positive towards the interior, at the output times.
+        Face (``"exterior"``/``"interior"``) or flux-depth name -> heat flux density [W/m2],
+        positive towards the interior, at the output times.
     info : dict
         Engine facts worth reporting (path used, node count, energy-balance residual...).
     """
@@ -116,10 +182,210 @@ class EngineOutput:
     info: dict = field(default_factory=dict)
 
 
+@dataclass
+class BatchOutput:
+    """What an engine returns for a batch of walls: the arrays of :class:`EngineOutput` with a
+    leading candidate axis, shape (n_candidates, n_times) each."""
+
+    temperatures: dict[str, np.ndarray]
+    fluxes: dict[str, np.ndarray]
+    info: dict = field(default_factory=dict)
+
+    def output(self, c: int) -> EngineOutput:
+        """The :class:`EngineOutput` of candidate ``c``."""
+        return EngineOutput(
+            {k: v[c] for k, v in self.temperatures.items()}, {k: v[c] for k, v in self.fluxes.items()}, dict(self.info)
+        )
+
+
+@dataclass(frozen=True)
+class WallBatch:
+    """Candidate walls with the prepared wall's layer structure, as arrays (fast to build in bulk).
+
+    Attributes
+    ----------
+    properties : PropertyArrays
+        Layer properties, shape (n_candidates, n_layers) each.
+    probe_depths : ndarray, shape (n_candidates, n_probes) or None
+        Depths [m] of the input's ``probes``, in that order; None: the prepared wall's.
+    """
+
+    properties: PropertyArrays
+    probe_depths: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return self.properties.n_candidates
+
+    @classmethod
+    def from_walls(cls, walls: Sequence[Wall], probes: Sequence[str]) -> WallBatch:
+        depths = np.array([[w.probe(p).depth for p in probes] for w in walls], dtype=float).reshape(len(walls), -1)
+        return cls(PropertyArrays.from_walls(list(walls)), depths)
+
+    def walls(self, base: Wall, probes: Sequence[str]) -> list[Wall]:
+        """The candidates as :class:`Wall` objects built from ``base`` (for engines that run walls)."""
+        pa = self.properties
+        out = []
+        for c in range(self.n):
+            w = base
+            for i, layer in enumerate(base.layers):
+                if layer.is_massless:
+                    w = w.replace_layer(layer.id, thermal_resistance=float(pa.thermal_resistance[c, i]))
+                    continue
+                changes = dict(
+                    conductivity=float(pa.conductivity[c, i]),
+                    conductivity_temperature_coefficient=float(pa.temperature_coefficient[c, i]),
+                    reference_temperature=float(pa.reference_temperature[c, i]),
+                    contact_resistance=float(pa.contact_resistance[c, i]),
+                )
+                rho_c = float(pa.volumetric_heat_capacity[c, i])
+                if rho_c != layer.volumetric_heat_capacity:  # keep the density, move the specific heat
+                    changes["specific_heat"] = rho_c / layer.density
+                w = w.replace_layer(layer.id, **changes)
+            if self.probe_depths is not None:
+                for k, p in enumerate(probes):
+                    w = w.replace_probe(p, depth=float(self.probe_depths[c, k]))
+            out.append(w)
+        return out
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What an engine can do (everything else about an input is checked by :meth:`Engine.problems`).
+
+    Attributes
+    ----------
+    batches : bool
+        Runs a batch of candidate walls in one call, in milliseconds per wall (calibration,
+        sensitivity, identifiability, the posterior and the live page need it).
+    conductivity_laws : bool
+        lambda(T) laws (exponential coefficient and tables).
+    flux_at_depth : bool
+        Heat flux density inside the wall (:attr:`SimulationInput.flux_depths`).
+    contact_resistance : bool
+        Contact resistances between layers.
+    massless_layers : bool
+        No-mass (resistance-only) layers.
+    boundary_types : tuple of str
+        Boundary types accepted at both faces.
+    any_time_step : bool
+        Every positive time step (otherwise see :meth:`Engine.check_time_step`).
+    substitute : str or None
+        Engine that runs what this one cannot (e.g. batches), verified against this one.
+    substitute_verified : str
+        How the substitute was verified against this engine (said wherever it is used).
+    """
+
+    batches: bool
+    conductivity_laws: bool
+    flux_at_depth: bool
+    contact_resistance: bool
+    massless_layers: bool
+    boundary_types: tuple[str, ...] = BOUNDARY_TYPES
+    any_time_step: bool = True
+    substitute: str | None = None
+    substitute_verified: str = ""
+
+    def lacks(self, needs: Sequence[str]) -> list[str]:
+        """The capabilities among ``needs`` (attribute names) this engine does not have."""
+        return [n for n in needs if not getattr(self, n)]
+
+
+#: Words for capabilities in messages.
+CAPABILITY_WORDS = {
+    "batches": "batches of candidate walls",
+    "conductivity_laws": "lambda(T) laws",
+    "flux_at_depth": "heat fluxes inside the wall",
+    "contact_resistance": "contact resistances",
+    "massless_layers": "no-mass layers",
+}
+
+
 class Engine:
-    """Base class of engines. Subclasses set ``name`` and implement :meth:`run`."""
+    """The engine contract (see the module docstring). Subclasses set ``name`` and ``capabilities`` and
+    implement :meth:`prepare` and :meth:`run_wall` (or :meth:`run`, for batches in one call);
+    :meth:`check_time_step` when not every time step is allowed."""
 
     name = "base"
+    capabilities = Capabilities(
+        batches=False, conductivity_laws=False, flux_at_depth=False, contact_resistance=False, massless_layers=False
+    )
 
-    def run(self, inp: SimulationInput) -> EngineOutput:  # pragma: no cover - interface
+    def unavailable(self) -> str | None:
+        """Why this engine cannot run on this machine (an optional dependency is missing); None when it can."""
+        return None
+
+    def check_time_step(self, dt: float) -> str | None:
+        """Why this engine cannot run time step ``dt`` [s]; None when it can."""
+        if not (dt > 0 and np.isfinite(dt)):
+            return f"the time step must be a positive number of seconds, got {dt!r}"
+        return None
+
+    def problems(self, inp: SimulationInput) -> list[str]:
+        """Everything in ``inp`` this engine cannot run (empty when it can), each in words."""
+        cap, out = self.capabilities, []
+        for face in FACES:
+            b = getattr(inp, face)
+            if b.type not in cap.boundary_types:
+                out.append(
+                    f"the {self.name} engine accepts {' and '.join(map(repr, cap.boundary_types))} boundaries; "
+                    f"the {face} face has {b.type!r}"
+                )
+        why = self.check_time_step(float(inp.time_step))
+        if why:
+            out.append(why)
+        if inp.flux_depths and not cap.flux_at_depth:
+            out.append(f"the {self.name} engine gives no heat flux inside the wall")
+        layers = inp.wall.layers
+        if not cap.conductivity_laws and any(layer.is_temperature_dependent for layer in layers):
+            out.append(f"the {self.name} engine has no lambda(T) law")
+        if not cap.contact_resistance and any(layer.contact_resistance for layer in layers):
+            out.append(f"the {self.name} engine has no contact resistance")
+        if not cap.massless_layers and any(layer.is_massless for layer in layers):
+            out.append(f"the {self.name} engine has no no-mass layer")
+        return out
+
+    def check(self, inp: SimulationInput) -> None:
+        """Raise :class:`~wallcal.errors.EngineError` listing :meth:`problems`, if any."""
+        probs = self.problems(inp)
+        if probs:
+            raise EngineError("; ".join(probs))
+
+    def prepare(self, inp: SimulationInput):  # pragma: no cover - interface
+        """The work that depends only on ``inp``; the result has ``inp`` as attribute ``inp``."""
         raise NotImplementedError
+
+    def run_wall(self, prepared, wall: Wall) -> EngineOutput:  # pragma: no cover - interface
+        """Run one wall (the input's or another with the same layer structure and probes): what an engine
+        that runs walls one at a time implements; :meth:`run` calls it."""
+        raise NotImplementedError
+
+    def run(self, prepared, walls: Wall | Sequence[Wall] | WallBatch | None = None):
+        """Run the prepared wall (``walls`` None) or another wall (a :class:`Wall`): -> :class:`EngineOutput`;
+        a batch (a list of walls or a :class:`WallBatch`): -> :class:`BatchOutput`.
+
+        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly). This default runs the walls
+        one after the other through :meth:`run_wall`; engines with ``batches`` override it.
+        """
+        if isinstance(prepared, SimulationInput):
+            prepared = self.prepare(prepared)
+        inp = prepared.inp
+        if not is_batch(walls):
+            return self.run_wall(prepared, inp.wall if walls is None else walls)
+        if isinstance(walls, WallBatch):
+            walls = walls.walls(inp.wall, inp.probes)
+        outs = [self.run_wall(prepared, w) for w in walls]
+        return BatchOutput(
+            temperatures={k: np.stack([o.temperatures[k] for o in outs]) for k in inp.probes},
+            fluxes={k: np.stack([o.fluxes[k] for o in outs]) for k in outs[0].fluxes} if outs else {},
+            info={"engine": self.name, "runs": [o.info for o in outs]},
+        )
+
+    def simulate(self, inp: SimulationInput) -> EngineOutput:
+        """``run(prepare(inp))``: one run of the input's wall."""
+        return self.run(self.prepare(inp))
+
+
+def is_batch(walls) -> bool:
+    """Whether ``walls`` asks :meth:`Engine.run` for a batch (a list of walls or a :class:`WallBatch`)."""
+    return isinstance(walls, WallBatch) or (walls is not None and not isinstance(walls, Wall))

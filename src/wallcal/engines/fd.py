@@ -1,6 +1,7 @@
 """The finite-volume engine ``fd`` (``fd-cn``: Crank-Nicolson, ``fd-implicit``: fully implicit).
 
-Build once, run many: :meth:`FDEngine.prepare` turns a :class:`SimulationInput`
+The engine contract (:mod:`wallcal.engines.base`) on a build-once, run-many core:
+:meth:`FDEngine.prepare` turns a :class:`SimulationInput`
 into a :class:`PreparedFD` (grid, boundary series, output positions, conductivity
 laws); :meth:`PreparedFD.run_batch` then runs any number of candidate walls
 (same layer structure, other properties or probe depths) in one call of the
@@ -29,8 +30,9 @@ Scheme details
 - Outputs: probe temperatures exact on a node and linear between nodes; face
   heat fluxes from the surface half-node energy balance
   ``q_e = g_01 (T_0 - T_1) + c_0 dT_0/dt`` (central difference of the imposed
-  series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces.
-  Outputs between grid times are interpolated linearly in time.
+  series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces. A heat flux inside the
+  wall (``SimulationInput.flux_depths``) comes from three probes the engine adds around the depth
+  (:mod:`wallcal.engines.depthflux`). Outputs between grid times are interpolated linearly in time.
 - Paths: walls with constant conductances, heat capacity at every unknown node
   and no stiff link take the exact modal fast path (:mod:`wallcal.engines.modal`);
   the others the general tridiagonal path (:mod:`wallcal.engines.kernels`).
@@ -60,9 +62,10 @@ from ..grid import (
     build_grid,
     probe_weights,
 )
-from ..wall import Wall
+from ..wall import Probe, Wall
 from . import kernels, modal
-from .base import Engine, EngineOutput, SimulationInput
+from .base import BatchOutput, Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch
+from .depthflux import depth_triplet, flux_at_depth
 
 BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN, "heat_flux": kernels.FLUX}
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
@@ -138,9 +141,9 @@ class PreparedFD:
         self.probe_sides = [self.wall.probe(p).side for p in self.probe_names]
         # conductivity laws per link (constant over candidates except through g_ref); layers whose
         # temperature coefficient is a calibration parameter use the exponential law even at f = 0
-        self.exponential_layers = frozenset(inp.options.get("exponential_layers", ()))
+        self.exponential_layers = frozenset(inp.options.exponential_layers)
         # lambda(T): refactorise the tridiagonal matrix when a conductance drifts this much (0: every step)
-        self.refactor_drift = float(inp.options.get("refactor_drift", 0.02))
+        self.refactor_drift = float(inp.options.refactor_drift)
         self._laws()
 
     # ------------------------------------------------------------------ setup
@@ -362,23 +365,115 @@ class PreparedFD:
 
 
 class FDEngine(Engine):
-    """Finite-volume theta-scheme engine (see module docstring)."""
+    """Finite-volume theta-scheme engine (see module docstring) behind the engine contract.
 
-    def __init__(self, scheme: str = "cn", stiff_limit: float = DEFAULT_STIFF_LIMIT):
+    :meth:`prepare` returns a :class:`PreparedFD` (its ``inp`` carries, after the input's probes,
+    three probes around each of ``inp.flux_depths``); :meth:`run` runs it for the prepared wall,
+    another wall or a batch through :meth:`PreparedFD.run_batch`.
+    """
+
+    capabilities = Capabilities(
+        batches=True, conductivity_laws=True, flux_at_depth=True, contact_resistance=True, massless_layers=True
+    )
+
+    def __init__(self, scheme: str = "cn"):
+        if scheme not in SCHEME_THETA:
+            raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {scheme!r}")
         self.scheme = scheme
         self.name = f"fd-{scheme}"
-        self.stiff_limit = stiff_limit
+        self._walls: dict[int, tuple[Wall, tuple[str, ...], WallBatch]] = {}  # arrays of recently run walls
 
-    def prepare(self, inp: SimulationInput, contact_layers: frozenset[int] = frozenset()) -> PreparedFD:
-        # the grid follows C and the time step; options["grid_time_step"] builds it for another step
-        # (convergence studies in time on a fixed grid)
-        grid_dt = inp.options.get("grid_time_step", inp.time_step)
-        grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, contact_layers)
-        return PreparedFD(inp, grid, stiff_limit=inp.options.get("stiff_limit", self.stiff_limit))
+    def _batch_of(self, wall: Wall, probes: tuple[str, ...]) -> WallBatch:
+        """The arrays of one wall, kept for the walls run last (walls are immutable: a repeated run of the
+        same wall object skips rebuilding them)."""
+        hit = self._walls.get(id(wall))
+        if hit is not None and hit[0] is wall and hit[1] == probes:
+            return hit[2]
+        batch = WallBatch.from_walls([wall], probes)
+        if len(self._walls) >= 8:
+            self._walls.pop(next(iter(self._walls)))
+        self._walls[id(wall)] = (wall, probes, batch)
+        return batch
 
-    def run(self, inp: SimulationInput, path: str = "auto") -> EngineOutput:
-        """Run one wall; ``path`` as in :meth:`PreparedFD.run_batch` (default: the fast path when possible)."""
+    def prepare(self, inp: SimulationInput) -> PreparedFD:
+        """Grid, boundary series, laws and output plan of ``inp`` (the grid follows C and the time step, or
+        ``options.grid_time_step``; contact links at ``options.contact_layers`` even without resistance)."""
+        opts = inp.options
+        core = inp
+        if inp.flux_depths:  # three probes around each depth, after the input's probes
+            extra = tuple(
+                Probe(_depth_probe(name, k), x)
+                for name, depth in inp.flux_depths
+                for k, x in enumerate(depth_triplet(inp.wall.thickness, depth))
+            )
+            core = inp.replace(
+                wall=inp.wall.replace(probes=inp.wall.probes + extra), probes=inp.probes + tuple(p.name for p in extra)
+            )
+        grid_dt = opts.grid_time_step or inp.time_step
+        grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, opts.contact_layers)
+        return PreparedFD(core, grid, stiff_limit=opts.stiff_limit)
+
+    def run(self, prepared: PreparedFD | SimulationInput, walls=None, *, path: str = "auto"):
+        """Run the prepared wall, another wall (:class:`EngineOutput`) or a batch (:class:`BatchOutput`).
+
+        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly); ``path`` as in
+        :meth:`PreparedFD.run_batch` (default: the exact modal path when the walls allow it).
+        """
+        if isinstance(prepared, SimulationInput):
+            prepared = self.prepare(prepared)
         t = time.perf_counter()
-        prep = self.prepare(inp)
-        res = prep.run_walls([inp.wall], path=path)
-        return prep.to_output(res, 0, elapsed=time.perf_counter() - t)
+        inp = prepared.inp
+        n_user = len(inp.probes) - 3 * len(inp.flux_depths)
+        if is_batch(walls):
+            batch = walls if isinstance(walls, WallBatch) else WallBatch.from_walls(walls, inp.probes[:n_user])
+            rows = np.zeros(len(inp.probes) + 2, dtype=bool)
+            rows[: len(inp.probes)] = True
+            for face in inp.flux_faces:
+                rows[len(inp.probes) + (0 if face == "exterior" else 1)] = True
+        else:
+            batch = self._batch_of(inp.wall if walls is None else walls, inp.probes[:n_user])
+            rows = None
+        depths = _with_depth_probes(prepared, batch)
+        res = prepared.run_batch(batch.properties, depths, path=path, rows=rows)
+        if not is_batch(walls):
+            out = prepared.to_output(res, 0, elapsed=None)
+            for name in inp.probes[n_user:]:
+                del out.temperatures[name]
+            for name, depth in inp.flux_depths:
+                out.fluxes[name] = _depth_flux(prepared, res.out, batch.properties, name, depth, n_user)[0]
+            out.info["seconds"] = time.perf_counter() - t
+            return out
+        npr = len(inp.probes)
+        temps = {name: res.out[:, k] for k, name in enumerate(inp.probes[:n_user])}
+        fluxes = {face: res.out[:, npr + (0 if face == "exterior" else 1)] for face in inp.flux_faces}
+        for name, depth in inp.flux_depths:
+            fluxes[name] = _depth_flux(prepared, res.out, batch.properties, name, depth, n_user)
+        info = {
+            "engine": self.name,
+            "path": res.path,
+            "nodes": prepared.grid.n_nodes,
+            "implicit_links": res.implicit_links,
+            "seconds": time.perf_counter() - t,
+        }
+        return BatchOutput(temperatures=temps, fluxes=fluxes, info=info)
+
+
+def _depth_probe(name: str, k: int) -> str:
+    return f"__{name}__{('minus', 'at', 'plus')[k]}"
+
+
+def _with_depth_probes(prepared: PreparedFD, batch: WallBatch) -> np.ndarray:
+    """Probe depth matrix of a batch: the input's probes, then the three probes of each flux depth."""
+    inp = prepared.inp
+    fixed = [x for _, depth in inp.flux_depths for x in depth_triplet(inp.wall.thickness, depth)]
+    n_user = len(inp.probes) - len(fixed)
+    user = batch.probe_depths
+    if user is None:
+        user = np.tile([inp.wall.probe(p).depth for p in inp.probes[:n_user]], (batch.n, 1))
+    user = np.asarray(user, dtype=float).reshape(batch.n, n_user)
+    return np.hstack([user, np.tile(fixed, (batch.n, 1))]) if fixed else user
+
+
+def _depth_flux(prepared: PreparedFD, out: np.ndarray, props, name: str, depth: float, n_user: int) -> np.ndarray:
+    k = n_user + 3 * [n for n, _ in prepared.inp.flux_depths].index(name)
+    return flux_at_depth(prepared.inp.wall, props, depth, out[:, k], out[:, k + 1], out[:, k + 2])

@@ -48,11 +48,9 @@ import numpy as np
 from ..errors import EngineError
 from ..grid import MIN_CONTACT_RESISTANCE, build_grid
 from ..wall import Wall
-from .base import BOUNDARY_TYPES, Engine, EngineOutput, SimulationInput
+from .base import BOUNDARY_TYPES, Capabilities, Engine, EngineOutput, SimulationInput
 
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
-DEFAULT_STIFF_LIMIT = 10.0
-DEFAULT_REFACTOR_DRIFT = 0.02
 
 
 # ---------------------------------------------------------------------------- the discrete wall
@@ -201,6 +199,13 @@ class ReferenceResult:
 
 
 # ---------------------------------------------------------------------------- the engine
+@dataclass(frozen=True)
+class ReferencePrepared:
+    """The input, kept as it is (the reference prepares nothing ahead)."""
+
+    inp: SimulationInput
+
+
 class ReferenceEngine(Engine):
     """Plain dense theta-scheme engine ``fd-reference`` (see module docstring).
 
@@ -211,23 +216,25 @@ class ReferenceEngine(Engine):
     """
 
     name = "fd-reference"
+    capabilities = Capabilities(
+        batches=False, conductivity_laws=True, flux_at_depth=True, contact_resistance=True, massless_layers=True
+    )
 
-    def run(self, inp: SimulationInput) -> EngineOutput:
-        """Run the input's wall."""
+    def prepare(self, inp: SimulationInput) -> ReferencePrepared:
+        """Nothing to prepare: the reference builds everything on every run, plainly."""
+        self.check(inp)
+        return ReferencePrepared(inp)
+
+    def run_wall(self, prepared: ReferencePrepared, wall: Wall) -> EngineOutput:
+        """Run one wall (same layer structure as the input's) on the grid of the input's wall."""
+        inp = prepared.inp
         t = time.perf_counter()
-        res = self.simulate(inp)
-        return self._output(inp, res, time.perf_counter() - t)
-
-    def run_walls(
-        self, inp: SimulationInput, walls: list[Wall], contact_layers: frozenset[int] = frozenset()
-    ) -> list[EngineOutput]:
-        """Run candidate walls (same layer structure as ``inp.wall``) on the grid of ``inp.wall``, one by one."""
-        outs = []
-        for w in walls:
-            t = time.perf_counter()
-            res = self.simulate(inp, wall=w, contact_layers=contact_layers)
-            outs.append(self._output(inp, res, time.perf_counter() - t))
-        return outs
+        depths = tuple(d for _, d in inp.flux_depths)
+        res = self.solve(inp, wall=wall, flux_depths=depths)
+        out = self._output(inp, res, time.perf_counter() - t)
+        for name, depth in inp.flux_depths:
+            out.fluxes[name] = res.depth_fluxes[float(depth)]
+        return out
 
     def _output(self, inp: SimulationInput, res: ReferenceResult, seconds: float) -> EngineOutput:
         info = {
@@ -244,12 +251,12 @@ class ReferenceEngine(Engine):
         return EngineOutput(temperatures=res.temperatures, fluxes=res.fluxes, info=info)
 
     # ------------------------------------------------------------------ one run
-    def simulate(
+    def solve(
         self,
         inp: SimulationInput,
         wall: Wall | None = None,
         flux_depths: tuple[float, ...] = (),
-        contact_layers: frozenset[int] = frozenset(),
+        contact_layers: frozenset[int] | None = None,
         initial_state: np.ndarray | None = None,
     ) -> ReferenceResult:
         """Run one wall and keep everything.
@@ -262,9 +269,9 @@ class ReferenceEngine(Engine):
             A candidate wall with the same layer structure (default ``inp.wall``); its probes are used.
         flux_depths : tuple of float
             Depths [m] at which the heat flux density is wanted (see :func:`flux_at_depth`).
-        contact_layers : frozenset of int
+        contact_layers : frozenset of int, optional
             Layers that get a contact link even with a zero contact resistance (as in
-            :func:`wallcal.grid.build_grid`).
+            :func:`wallcal.grid.build_grid`); default the input's ``options.contact_layers``.
         initial_state : ndarray, optional
             Node temperatures [degC] at grid time 0; default the steady state of the first boundary values.
         """
@@ -285,7 +292,9 @@ class ReferenceEngine(Engine):
             raise EngineError("boundary series must have the same length, at least two values")
         dt = float(inp.time_step)
 
-        grid_dt = inp.options.get("grid_time_step", inp.time_step)
+        grid_dt = inp.options.grid_time_step or inp.time_step
+        if contact_layers is None:
+            contact_layers = inp.options.contact_layers
         grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, contact_layers)
         contact_after = tuple(int(li) for li in grid.link_contact_of if li >= 0)
         disc = discretise(wall, grid.nodes_per_layer, contact_after)
@@ -429,8 +438,8 @@ class ReferenceEngine(Engine):
         if inp.scheme not in SCHEME_THETA:
             raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
         theta0 = SCHEME_THETA[inp.scheme]
-        stiff_limit = float(inp.options.get("stiff_limit", DEFAULT_STIFF_LIMIT))
-        drift = float(inp.options.get("refactor_drift", DEFAULT_REFACTOR_DRIFT))
+        stiff_limit = float(inp.options.stiff_limit)
+        drift = float(inp.options.refactor_drift)
         return theta0, stiff_limit, drift
 
 

@@ -124,8 +124,7 @@ class ManualCalibration:
     def __init__(self, study_path: str | Path):
         self.study_path = Path(study_path).resolve()
         self.study = wallcal.load_study(self.study_path)
-        engine = "fd-cn" if self.study.simulation.engine == "energyplus" else self.study.simulation.engine
-        self.prepared = wallcal.prepare(self.study, engine)
+        self.prepared = wallcal.prepare(self.study, needs=("batches",), purpose="the live page")
         self.base = wallcal.simulate(self.study, prepared=self.prepared)
         self.lock = threading.Lock()
         self.params = []

@@ -1,0 +1,87 @@
+"""Heat flux density at a depth inside the wall, from temperatures around that depth (shared by the engines).
+
+An engine that gives temperatures anywhere in the wall (linear between its nodes) reads the flux at
+depth ``x`` from three temperatures at ``x - h``, ``x`` and ``x + h`` (h = 1 mm, kept inside the wall):
+each half gives the flux of the link it lies in, ``q_l = lambda_l (T(x-h) - T(x)) / h`` and
+``q_r = lambda_r (T(x) - T(x+h)) / h``, lambda at the half-interval's mean temperature. Inside a layer
+``q = (q_l + q_r) / 2`` (a central difference at a node). At a layer interface the heat stored in the
+two half cells between the links is shared out: ``q = (b_r q_l + b_l q_r) / (b_l + b_r)`` with ``b``
+each layer's effusivity sqrt(lambda rho c), to which the half cells' capacities are proportional on a
+C-rule grid (b = 0 for a no-mass layer). Positive towards the interior.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..grid import PropertyArrays
+from ..standards.iso10456 import temperature_factor
+from ..wall import Wall
+
+#: Half-distance [m] of the three temperatures that give a heat flux inside the wall
+FLUX_PROBE_SPACING = 1e-3
+
+
+def depth_triplet(thickness: float, depth: float) -> tuple[float, float, float]:
+    """Depths [m] of the three temperatures: depth - h, depth, depth + h (h = 1 mm, inside the wall)."""
+    h = FLUX_PROBE_SPACING
+    return (max(depth - h, 0.0), depth, min(depth + h, thickness))
+
+
+def _layer_index(wall: Wall, x: float) -> int:
+    return int(np.clip(np.searchsorted(wall.interfaces, x, side="right") - 1, 0, len(wall.layers) - 1))
+
+
+def _conductivity(wall: Wall, props: PropertyArrays, li: int, temperature: np.ndarray) -> np.ndarray:
+    """Conductivity [W/(m K)] of layer ``li`` of every candidate at ``temperature`` (nc, nt)."""
+    layer = wall.layers[li]
+    if layer.is_massless:
+        return layer.thickness / props.thermal_resistance[:, li, None] if layer.thickness > 0 else np.inf
+    lam0 = props.conductivity[:, li, None]
+    if layer.conductivity_table is not None:  # the candidate's conductivity scales the table
+        tab = np.asarray(layer.conductivity_table, dtype=float)
+        ref = np.interp(props.reference_temperature[:, li, None], tab[:, 0], tab[:, 1])
+        return lam0 * np.interp(temperature, tab[:, 0], tab[:, 1]) / ref
+    f = props.temperature_coefficient[:, li, None]
+    return lam0 * temperature_factor(f, temperature - props.reference_temperature[:, li, None])
+
+
+def flux_at_depth(wall: Wall, props: PropertyArrays, depth: float, t_minus, t_at, t_plus) -> np.ndarray:
+    """Heat flux density [W/m2] at ``depth`` [m], positive towards the interior (see the module docstring).
+
+    Parameters
+    ----------
+    wall : Wall
+        The layer structure (and lambda(T) tables).
+    props : PropertyArrays
+        Every candidate's layer properties, shape (n_candidates, n_layers).
+    depth : float
+    t_minus, t_at, t_plus : ndarray, shape (n_candidates, n_times)
+        Temperatures [degC] at the three depths of :func:`depth_triplet`.
+
+    Returns
+    -------
+    ndarray, shape (n_candidates, n_times)
+    """
+    xm, x0, xp = depth_triplet(wall.thickness, depth)
+    t_minus, t_at, t_plus = (np.asarray(v, dtype=float) for v in (t_minus, t_at, t_plus))
+    halves = []
+    for xa, xb, ta, tb in ((xm, x0, t_minus, t_at), (x0, xp, t_at, t_plus)):
+        if xb > xa:
+            li = _layer_index(wall, 0.5 * (xa + xb))
+            halves.append((li, _conductivity(wall, props, li, 0.5 * (ta + tb)) * (ta - tb) / (xb - xa)))
+    if len(halves) == 1:
+        return halves[0][1]
+    (ll, ql), (lr, qr) = halves
+    if ll == lr:
+        return 0.5 * (ql + qr)
+
+    def effusivity(li):
+        if wall.layers[li].is_massless:
+            return np.zeros((props.n_candidates, 1))
+        return np.sqrt(props.conductivity[:, li, None] * props.volumetric_heat_capacity[:, li, None])
+
+    bl, br = effusivity(ll), effusivity(lr)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = (br * ql + bl * qr) / (bl + br)
+    return np.where(bl + br == 0, 0.5 * (ql + qr), q)
