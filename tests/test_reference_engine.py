@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from wallcal.engines import get_engine
 from wallcal.engines.base import BoundaryInput, SimulationInput
 from wallcal.engines.fd import FDEngine
 from wallcal.engines.reference import ReferenceEngine, discretise, link_thetas
@@ -428,3 +429,47 @@ def test_flux_at_depth_is_uniform_in_a_steady_state(seed):
     if ext.type == intr.type == "surface_temperature" and w.is_linear:
         q = (ext.values[0] - intr.values[0]) / w.resistance
         np.testing.assert_allclose(q_ext, q, rtol=1e-10)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 3, 6, 9, 16, 18, 40])
+def test_fd_flux_at_depth_is_uniform_in_a_steady_state(seed):
+    """The fd engine's heat flux at a depth (layer interfaces, contact resistances, inside layers) in a
+    steady state of a wall with constant conductivities equals the face flux and the reference's: the
+    profile is linear in each layer and the contact link carries the whole flux across its jump (reading
+    a gradient over the jump gave -1043 W/m2 for -57 W/m2 before). Tolerance: round-off of the steady
+    solve (1e-9 relative)."""
+    inp = make_case(seed)
+    w = inp.wall
+    if not w.is_linear:
+        w = w.replace(
+            layers=tuple(
+                layer.replace(
+                    conductivity=layer.conductivity_at(layer.reference_temperature),
+                    conductivity_temperature_coefficient=0.0,
+                    conductivity_table=None,
+                )
+                if not layer.is_massless
+                else layer
+                for layer in w.layers
+            )
+        )
+    n = 12
+    ext = dataclasses.replace(inp.exterior, values=np.full(n + 1, inp.exterior.values[0]))
+    intr = dataclasses.replace(inp.interior, values=np.full(n + 1, inp.interior.values[0]))
+    depths = (*(float(x) for x in w.interfaces), *np.random.default_rng(seed).uniform(0, w.thickness, 5))
+    inp = dataclasses.replace(
+        inp,
+        wall=w,
+        exterior=ext,
+        interior=intr,
+        output_positions=np.linspace(0, n, 5),
+        flux_faces=("exterior", "interior"),
+        flux_depths=tuple((f"q{k}", d) for k, d in enumerate(depths)),
+    )
+    fast = get_engine("fd-cn").simulate(inp)
+    ref = ReferenceEngine().simulate(inp)
+    q = fast.fluxes["exterior"]
+    scale = max(1.0, float(np.max(np.abs(q))))
+    for k, d in enumerate(depths):
+        np.testing.assert_allclose(fast.fluxes[f"q{k}"], q, rtol=0, atol=1e-9 * scale, err_msg=f"depth {d}")
+        np.testing.assert_allclose(ref.fluxes[f"q{k}"], q, rtol=0, atol=1e-9 * scale, err_msg=f"depth {d}")

@@ -1,20 +1,26 @@
 """Heat flux density at a depth inside the wall, from temperatures around that depth (shared by the engines).
 
 An engine that gives temperatures anywhere in the wall (linear between its nodes) reads the flux at
-depth ``x`` from three temperatures at ``x - h``, ``x`` and ``x + h`` (h = 1 mm, kept inside the wall):
+depth ``x`` from three temperatures at ``x - h``, ``x`` and ``x + h`` (h = 1 mm, each half kept inside the
+wall and inside its layer):
 each half gives the flux of the link it lies in, ``q_l = lambda_l (T(x-h) - T(x)) / h`` and
 ``q_r = lambda_r (T(x) - T(x+h)) / h``, lambda at the half-interval's mean temperature. Inside a layer
 ``q = (q_l + q_r) / 2`` (a central difference at a node). At a layer interface the heat stored in the
 two half cells between the links is shared out: ``q = (b_r q_l + b_l q_r) / (b_l + b_r)`` with ``b``
 each layer's effusivity sqrt(lambda rho c), to which the half cells' capacities are proportional on a
 C-rule grid (b = 0 for a no-mass layer). Positive towards the interior.
+
+At an interface that carries a contact resistance ``R_c`` (a contact link of the grid) the
+temperature jumps across the interface, so no gradient can be read there: the three temperatures
+are taken at the interface itself, on its exterior side, as the mean and on its interior side, and
+the flux is the contact link's own, ``q = (T_ext_side - T_int_side) / R_c``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..grid import PropertyArrays
+from ..grid import MIN_CONTACT_RESISTANCE, PropertyArrays
 from ..standards.iso10456 import temperature_factor
 from ..wall import Wall
 
@@ -22,10 +28,42 @@ from ..wall import Wall
 FLUX_PROBE_SPACING = 1e-3
 
 
-def depth_triplet(thickness: float, depth: float) -> tuple[float, float, float]:
-    """Depths [m] of the three temperatures: depth - h, depth, depth + h (h = 1 mm, inside the wall)."""
+def depth_triplet(wall: Wall, depth: float) -> tuple[float, float, float]:
+    """Depths [m] of the three temperatures: depth - h, depth, depth + h (h = 1 mm), each half kept inside
+    the wall and inside the layer it starts in (a half never reads a gradient across a layer interface,
+    where a contact resistance or a thin, very different layer would make it meaningless)."""
     h = FLUX_PROBE_SPACING
-    return (max(depth - h, 0.0), depth, min(depth + h, thickness))
+    bounds = wall.interfaces
+    tol = 1e-12 * max(wall.thickness, 1.0)
+    left = _layer_index(wall, depth - tol)
+    right = _layer_index(wall, depth + tol)
+    xm = max(depth - h, bounds[left], 0.0) if depth > tol else depth
+    xp = min(depth + h, bounds[right + 1], wall.thickness) if depth < wall.thickness - tol else depth
+    return (xm, depth, xp)
+
+
+def contact_at(wall: Wall, depth: float, contact_layers=frozenset()) -> int | None:
+    """Index of the layer whose contact resistance sits at ``depth`` [m] (the interface after it carries a
+    contact link: a contact resistance > 0, or a layer in ``contact_layers``); None elsewhere."""
+    tol = 1e-9 * max(wall.thickness, 1.0)
+    for i in range(len(wall.layers) - 1):
+        has_link = wall.layers[i].contact_resistance > 0 or i in contact_layers
+        if has_link and abs(wall.interfaces[i + 1] - depth) <= tol:
+            return i
+    return None
+
+
+def depth_probes(wall: Wall, depth: float, contact_layers=frozenset()) -> tuple[tuple[float, str | None], ...]:
+    """(depth [m], side) of the three temperatures that give the flux at ``depth``: :func:`depth_triplet`,
+    or at a contact interface the interface's exterior side, its mean and its interior side."""
+    if contact_at(wall, depth, contact_layers) is not None:
+        return ((depth, "exterior"), (depth, None), (depth, "interior"))
+    xm, x0, xp = depth_triplet(wall, depth)
+    inner = wall.interfaces[1:-1]
+    # an end of a half that lies on an interface reads the side of the half's own layer
+    side_m = "interior" if xm < x0 and np.any(np.isclose(inner, xm, rtol=0, atol=1e-12)) else None
+    side_p = "exterior" if xp > x0 and np.any(np.isclose(inner, xp, rtol=0, atol=1e-12)) else None
+    return ((xm, side_m), (x0, None), (xp, side_p))
 
 
 def _layer_index(wall: Wall, x: float) -> int:
@@ -46,7 +84,9 @@ def _conductivity(wall: Wall, props: PropertyArrays, li: int, temperature: np.nd
     return lam0 * temperature_factor(f, temperature - props.reference_temperature[:, li, None])
 
 
-def flux_at_depth(wall: Wall, props: PropertyArrays, depth: float, t_minus, t_at, t_plus) -> np.ndarray:
+def flux_at_depth(
+    wall: Wall, props: PropertyArrays, depth: float, t_minus, t_at, t_plus, contact_layer: int | None = None
+) -> np.ndarray:
     """Heat flux density [W/m2] at ``depth`` [m], positive towards the interior (see the module docstring).
 
     Parameters
@@ -57,14 +97,20 @@ def flux_at_depth(wall: Wall, props: PropertyArrays, depth: float, t_minus, t_at
         Every candidate's layer properties, shape (n_candidates, n_layers).
     depth : float
     t_minus, t_at, t_plus : ndarray, shape (n_candidates, n_times)
-        Temperatures [degC] at the three depths of :func:`depth_triplet`.
+        Temperatures [degC] at the three depths of :func:`depth_triplet` (of :func:`depth_probes`).
+    contact_layer : int, optional
+        The layer whose contact resistance sits at ``depth`` (:func:`contact_at`): the temperatures are
+        the interface's two sides and the flux is the contact link's.
 
     Returns
     -------
     ndarray, shape (n_candidates, n_times)
     """
-    xm, x0, xp = depth_triplet(wall.thickness, depth)
+    xm, x0, xp = depth_triplet(wall, depth)
     t_minus, t_at, t_plus = (np.asarray(v, dtype=float) for v in (t_minus, t_at, t_plus))
+    if contact_layer is not None:
+        r_c = np.maximum(props.contact_resistance[:, contact_layer, None], MIN_CONTACT_RESISTANCE)
+        return (t_minus - t_plus) / r_c
     halves = []
     for xa, xb, ta, tb in ((xm, x0, t_minus, t_at), (x0, xp, t_at, t_plus)):
         if xb > xa:

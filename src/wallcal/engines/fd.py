@@ -65,7 +65,7 @@ from ..grid import (
 from ..wall import Probe, Wall
 from . import kernels, modal
 from .base import BatchOutput, Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch
-from .depthflux import depth_triplet, flux_at_depth
+from .depthflux import contact_at, depth_probes, flux_at_depth
 
 BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN, "heat_flux": kernels.FLUX}
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
@@ -402,9 +402,9 @@ class FDEngine(Engine):
         core = inp
         if inp.flux_depths:  # three probes around each depth, after the input's probes
             extra = tuple(
-                Probe(_depth_probe(name, k), x)
+                Probe(_depth_probe(name, k), x, side)
                 for name, depth in inp.flux_depths
-                for k, x in enumerate(depth_triplet(inp.wall.thickness, depth))
+                for k, (x, side) in enumerate(depth_probes(inp.wall, depth, opts.contact_layers))
             )
             core = inp.replace(
                 wall=inp.wall.replace(probes=inp.wall.probes + extra), probes=inp.probes + tuple(p.name for p in extra)
@@ -465,7 +465,8 @@ def _depth_probe(name: str, k: int) -> str:
 def _with_depth_probes(prepared: PreparedFD, batch: WallBatch) -> np.ndarray:
     """Probe depth matrix of a batch: the input's probes, then the three probes of each flux depth."""
     inp = prepared.inp
-    fixed = [x for _, depth in inp.flux_depths for x in depth_triplet(inp.wall.thickness, depth)]
+    contact = inp.options.contact_layers
+    fixed = [x for _, depth in inp.flux_depths for x, _ in depth_probes(inp.wall, depth, contact)]
     n_user = len(inp.probes) - len(fixed)
     user = batch.probe_depths
     if user is None:
@@ -475,5 +476,7 @@ def _with_depth_probes(prepared: PreparedFD, batch: WallBatch) -> np.ndarray:
 
 
 def _depth_flux(prepared: PreparedFD, out: np.ndarray, props, name: str, depth: float, n_user: int) -> np.ndarray:
-    k = n_user + 3 * [n for n, _ in prepared.inp.flux_depths].index(name)
-    return flux_at_depth(prepared.inp.wall, props, depth, out[:, k], out[:, k + 1], out[:, k + 2])
+    inp = prepared.inp
+    k = n_user + 3 * [n for n, _ in inp.flux_depths].index(name)
+    contact = contact_at(inp.wall, depth, inp.options.contact_layers)
+    return flux_at_depth(inp.wall, props, depth, out[:, k], out[:, k + 1], out[:, k + 2], contact_layer=contact)

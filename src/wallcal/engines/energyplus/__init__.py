@@ -320,7 +320,7 @@ class EnergyPlusEngine(Engine):
         for name, depth in inp.flux_depths:
             t3 = [
                 np.interp(pos, grid, probe_series(x, temps, d, None, inp.wall.thickness))[None]
-                for d in depth_triplet(inp.wall.thickness, depth)
+                for d in depth_triplet(inp.wall, depth)
             ]
             out_q[name] = flux_at_depth(inp.wall, props, depth, *t3)[0]
         return EngineOutput(temperatures=out_t, fluxes=out_q, info=info)
