@@ -150,6 +150,7 @@ class Study:
     simulation: SimulationSpec
     description: str = ""
     calibration: dict = field(default_factory=dict)
+    retrofit: Any = None  # wallcal.retrofitting.config.RetrofitSpec, from the [retrofit] table
     path: Path | None = None
     raw: dict = field(default_factory=dict, compare=False, repr=False)
     sha256: str = ""
@@ -335,6 +336,7 @@ LAYER_KEYS = (
     "conductivity_table",
     "contact_resistance",
     "thermal_resistance",
+    "vapour_resistance_factor",
 )
 PROBE_KEYS = ("name", "depth", "depth_from", "side")
 WALL_KEYS = ("name", "description", "layers", "probes", "file")
@@ -408,6 +410,7 @@ def _parse_wall(t: _Table, problems: _Problems, base_dir: Path | None) -> Wall |
                 )
         kw["reference_temperature"] = lt.num("reference_temperature", 10.0, ge=-100.0, le=200.0)
         kw["contact_resistance"] = lt.num("contact_resistance", 0.0, ge=0.0)
+        kw["vapour_resistance_factor"] = lt.num("vapour_resistance_factor", None, gt=0.0)
         material = lt.str("material", "")
         if (
             None in (lid, thickness)
@@ -516,7 +519,7 @@ def _read_toml(path: Path) -> dict:
 
 
 # ============================================================================ the study
-TOP_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation", "calibration")
+TOP_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation", "calibration", "retrofit")
 STUDY_KEYS = ("name", "description")
 DATA_KEYS = (
     "file",
@@ -822,6 +825,11 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
     if top.has("calibration") and not isinstance(calib, dict):
         problems.add("calibration", "must be a table")
         calib = {}
+    retrofit = None
+    if top.has("retrofit"):
+        from .retrofitting.config import parse_retrofit
+
+        retrofit = parse_retrofit(top.raw("retrofit"), problems, base_dir, wall)
 
     if problems:
         raise StudyError(problems, source=source)
@@ -838,6 +846,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         period=period,
         simulation=sim,
         calibration=calib,
+        retrofit=retrofit,
         raw=raw,
     )
     return study
@@ -867,6 +876,8 @@ def wall_to_dict(wall: Wall) -> dict:
             d["reference_temperature"] = layer.reference_temperature
         if layer.contact_resistance:
             d["contact_resistance"] = layer.contact_resistance
+        if layer.vapour_resistance_factor is not None:
+            d["vapour_resistance_factor"] = layer.vapour_resistance_factor
         layers.append(d)
     out: dict[str, Any] = {}
     if wall.name:
