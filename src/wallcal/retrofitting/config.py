@@ -118,7 +118,7 @@ class RetrofitSpec:
 
 
 # ============================================================================ layer tables
-def _resolve_catalogue(d: dict, path: str, problems: _Problems) -> dict:
+def _resolve_catalogue(d: dict, path: str, problems: _Problems) -> dict | None:
     """A layer table with its catalogue material's properties filled in (explicit keys win).
 
     A ``material`` that is not in the catalogue is kept as free text when the table gives every property
@@ -132,6 +132,7 @@ def _resolve_catalogue(d: dict, path: str, problems: _Problems) -> dict:
         needed = {"conductivity", "density", "specific_heat"}
         if "thermal_resistance" not in d and not needed <= set(d):
             problems.add(f"{path}.material", materials.unknown_message(name))
+            return None  # no follow-up 'required, missing' for the properties the material was to give
         return dict(d)
     out = {k: v for k, v in mat.layer_keys().items() if "thermal_resistance" not in d}
     out.update(d)
@@ -174,6 +175,8 @@ def _layer_list(vt: _Table, key: str, problems: _Problems, prefix: str) -> tuple
         t = {kk: vv for kk, vv in t.items() if kk in LAYER_KEYS}
         t.setdefault("id", f"{prefix}{k + 1}")
         tables.append(_resolve_catalogue(t, lp, problems))
+    if any(t is None for t in tables):
+        return ()
     return _parse_layers(tables, path, problems)
 
 
@@ -349,6 +352,8 @@ def _replaced(layer: Layer, changes: dict, path: str, problems: _Problems) -> La
     table = dict(base)
     table.update({k: v for k, v in changes.items() if k in LAYER_KEYS and k != "id"})
     table = _resolve_catalogue(table, path, problems)
+    if table is None:
+        return layer
     local = _Problems()
     out = _parse_layers([table], "__r", local)
     for p in local:

@@ -532,10 +532,9 @@ def retrofit(study, *, wall=None, from_dir=None, out=None, samples=None, progres
                         rse=1.0 / spec.exterior_surface_coefficient,
                     )
                 )
-            except StudyError as exc:
+            except StudyError as exc:  # the first variant that fails says it (usually the base wall's layers)
                 raise StudyError(
-                    [f"{v.path} ({v.name!r}): {p}" for p in exc.problems],
-                    source=str(study.path) if study.path else None,
+                    [f"{v.path} ({v.name!r}): {exc.problems[0]}"], source=str(study.path) if study.path else None
                 ) from None
     else:
         glasers = [None] * len(vwalls)
