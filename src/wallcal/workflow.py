@@ -10,6 +10,7 @@ Stages, in the order of the reference study:
 6. ``crosscheck`` - base and calibrated walls in every engine (Table VIII)
 7. ``standards`` - ISO 6946 U-value and ISO 13786 dynamic figures before and after, ISO 9869-1 verdict
 8. ``identifiability`` - which calibrated properties the data identify
+9. ``retrofit`` - the study's ``[retrofit]`` variants from the calibrated wall over a weather year
 
 Each stage writes its machine-readable results in its own sub-directory of the
 output and returns a :class:`StageOutput` for the report. A failing *optional*
@@ -345,6 +346,32 @@ def _stage_identifiability(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["identifiability"] = res
 
 
+def _stage_retrofit(ctx: RunContext, d: Path, so: StageOutput):
+    from .retrofitting.run import retrofit
+
+    if ctx.study.retrofit is None:
+        so.status, so.message = "skipped", "the study has no [retrofit] table"
+        return
+    cal = ctx.results.get("calibration")
+    res = retrofit(
+        ctx.study,
+        wall=None if cal is None else cal.wall_opt,
+        wall_source="the study's wall" if cal is None else "the calibrated wall",
+    )
+    so.files += res.write_into(d)
+    so.text += res.notes()
+    so.text.append(
+        "Intervals over the posterior draws: run 'wallcal posterior' and then 'wallcal retrofit STUDY --from "
+        "<posterior output>' (wallcal run has no posterior stage, so the interval columns are empty here)."
+    )
+    so.tables.append(("Variants over the weather year (variants.csv)", res.table().set_index("variant"), ()))
+    so.figures.append(("Annual heat loss per variant", d / "annual_loss.png"))
+    if (d / "glaser_worst_month.png").exists():
+        so.figures.append(("ISO 13788: Glaser diagram of each variant's worst month", d / "glaser_worst_month.png"))
+        so.figures.append(("ISO 13788: accumulated condensate month by month", d / "accumulation.png"))
+    ctx.results["retrofit"] = res
+
+
 STAGES = [
     Stage("data", "Measurements", _stage_data, required=True),
     Stage("engines", "Base case in every engine", _stage_engines, required=True),
@@ -354,6 +381,7 @@ STAGES = [
     Stage("crosscheck", "Cross-check of the walls in every engine", _stage_crosscheck),
     Stage("standards", "Standards: U-value, dynamic characteristics, ISO 9869-1", _stage_standards),
     Stage("identifiability", "How well the data identify each property", _stage_identifiability),
+    Stage("retrofit", "Retrofit variants over a weather year", _stage_retrofit),
 ]
 
 

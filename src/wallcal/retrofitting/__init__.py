@@ -11,14 +11,16 @@ Importing this package is cheap; pvlib and the engine are imported when a run st
 from __future__ import annotations
 
 
-def retrofit(study, *, wall=None, from_dir=None, out=None, samples=None, progress=False):
+def retrofit(study, *, wall=None, from_dir=None, out=None, samples=None, progress=False, wall_source=None):
     """Run every retrofit variant of a study over its weather year.
 
     See :func:`wallcal.retrofitting.run.retrofit` (this is the same function, imported lazily).
     """
     from .run import retrofit as _retrofit
 
-    return _retrofit(study, wall=wall, from_dir=from_dir, out=out, samples=samples, progress=progress)
+    return _retrofit(
+        study, wall=wall, from_dir=from_dir, out=out, samples=samples, progress=progress, wall_source=wall_source
+    )
 
 
 __all__ = ["retrofit"]

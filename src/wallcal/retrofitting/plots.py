@@ -34,15 +34,17 @@ def plot_annual_loss(res, path: Path) -> None:
             fmt="none",
             ecolor="k",
             capsize=4,
-            label="5-95 % of the posterior draws",
         )
-        ax.legend(loc="lower right", fontsize=8)
-    for yi, val, u in zip(y, tab["annual_loss_kWh_m2"], tab["U"], strict=True):
-        ax.text(val, yi, f"  {val:.1f} (U {u:.3f})", va="center", fontsize=8)
+    right = tab["annual_loss_p95"].fillna(tab["annual_loss_kWh_m2"]).to_numpy()
+    for yi, val, r, u in zip(y, tab["annual_loss_kWh_m2"], right, tab["U"], strict=True):
+        ax.text(max(val, r), yi, f"  {val:.1f} (U {u:.3f})", va="center", fontsize=8)
     ax.set_yticks(y, tab["variant"])
-    ax.set_xlabel("annual heat loss through the wall [kWh/m2] (net)")
-    ax.set_xlim(0, max(1e-9, float(np.nanmax(tab[["annual_loss_kWh_m2", "annual_loss_p95"]].to_numpy()))) * 1.35)
-    ax.set_title(f"Annual loss per variant, {res.weather.name}", fontsize=10)
+    xl = "annual heat loss through the wall [kWh/m2] (net)"
+    if tab["annual_loss_p05"].notna().any():
+        xl += "\nwhiskers: 5-95 % of the annual loss over the posterior draws"
+    ax.set_xlabel(xl, fontsize=9)
+    ax.set_xlim(0, max(1e-9, float(np.nanmax(tab[["annual_loss_kWh_m2", "annual_loss_p95"]].to_numpy()))) * 1.45)
+    ax.set_title(f"Annual loss per variant ({res.weather.name.removesuffix('.epw')})", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -52,8 +54,12 @@ def plot_glaser(res, path: Path) -> None:
     """Glaser diagram (p_sat and p against the cumulative s_d) of each variant's worst month."""
     plt = _plt()
     vs = [v for v in res.variants if v.glaser is not None]
-    fig, axes = plt.subplots(1, len(vs), figsize=(3.6 * len(vs), 3.6), squeeze=False)
-    for ax, v in zip(axes[0], vs, strict=True):
+    ncol = min(3, len(vs))
+    nrow = -(-len(vs) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.8 * ncol, 3.3 * nrow), squeeze=False)
+    for ax in axes.flat[len(vs) :]:
+        ax.set_visible(False)
+    for ax, v in zip(axes.flat, vs, strict=False):
         g = v.glaser
         pr = g.profiles[g.worst_month]
         ax.plot(pr.s, pr.p_sat, "r-", lw=1.2, label="p_sat")
@@ -62,9 +68,10 @@ def plot_glaser(res, path: Path) -> None:
         ax.plot(pr.s[cond], pr.p[cond], "ko", ms=4, label="condensation")
         for i in g.sub.first_interface[1:-1]:
             ax.axvline(pr.s[i], color="0.85", lw=0.8, zorder=0)
-        ax.set_xlabel("s_d from the exterior [m]")
+        ax.set_xlabel("s_d from the exterior [m]", fontsize=8)
         ax.set_title(f"{v.spec.name}\n{calendar.month_abbr[g.worst_month]}: {g.verdict}", fontsize=9)
-    axes[0][0].set_ylabel("vapour pressure [Pa]")
+    for row in axes:
+        row[0].set_ylabel("vapour pressure [Pa]")
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -78,14 +85,14 @@ def plot_accumulation(res, path: Path) -> None:
     for v in res.variants:
         if v.glaser is None:
             continue
-        t = v.glaser.table
-        x = np.arange(len(t))
+        t = v.glaser.table.sort_index()
+        x = t.index.to_numpy()
         ax.plot(
             x, 1e3 * t["accumulated_kg_m2"].to_numpy(), marker="o", ms=3, label=f"{v.spec.name} ({v.glaser.verdict})"
         )
-        ax.set_xticks(x, [calendar.month_abbr[m] for m in t.index])
+        ax.set_xticks(x, [calendar.month_abbr[m] for m in x])
     ax.set_ylabel("accumulated condensate [g/m2]")
-    ax.set_xlabel("month (in the order of the calculation)")
+    ax.set_xlabel("month (end-of-month amount)")
     ax.legend(fontsize=7)
     ax.set_title("ISO 13788 monthly method: accumulation", fontsize=10)
     fig.tight_layout()

@@ -471,7 +471,9 @@ def _frsi(wall: Wall, spec: RetrofitSpec) -> float:
 
 
 # ============================================================================ the entry point
-def retrofit(study, *, wall=None, from_dir=None, out=None, samples=None, progress=False) -> RetrofitResult:
+def retrofit(
+    study, *, wall=None, from_dir=None, out=None, samples=None, progress=False, wall_source=None
+) -> RetrofitResult:
     """Run every ``[retrofit]`` variant of a study over its weather year.
 
     Parameters
@@ -488,6 +490,8 @@ def retrofit(study, *, wall=None, from_dir=None, out=None, samples=None, progres
         At most this many posterior draws; default ``retrofit.samples``.
     progress : bool
         Print a line per variant on stderr.
+    wall_source : str, optional
+        How the report names the wall given as ``wall`` (default "the given wall").
 
     Returns
     -------
@@ -506,6 +510,7 @@ def retrofit(study, *, wall=None, from_dir=None, out=None, samples=None, progres
         )
     t_start = time.perf_counter()
     base, source, post_dir = base_wall_from(study, wall, from_dir)
+    source = wall_source or source
     base_dir = study.path.parent if study.path else None
     weather = read_weather(resolve_weather(spec.weather, base_dir))
     yb = year_boundaries(weather, spec)
