@@ -331,23 +331,19 @@ class RetrofitResult:
         correlation with the sampled wall's total resistance (the common-scale direction)."""
         if self.samples is None:
             return pd.DataFrame()
-        from scipy.stats import spearmanr
-
+        if getattr(self, "_spread", None) is not None:
+            return self._spread
         S = self.samples
         cols = {}
         r_tot = np.array([w.resistance for w in S.walls])
         for v in self.variants:
             y = v.sample_losses[: len(S.walls)]
-            col = {}
-            for j, name in enumerate(S.names):
-                x = S.values[:, j]
-                col[name] = float(spearmanr(x, y).statistic) if np.ptp(x) > 0 and np.ptp(y) > 0 else math.nan
-            col["R total of the sampled wall"] = (
-                float(spearmanr(r_tot, y).statistic) if np.ptp(r_tot) > 0 and np.ptp(y) > 0 else math.nan
-            )
+            col = {name: _spearman(S.values[:, j], y) for j, name in enumerate(S.names)}
+            col["R total of the sampled wall"] = _spearman(r_tot, y)
             cols[v.spec.name] = col
         df = pd.DataFrame(cols)
         df.index.name = "sampled property"
+        self._spread = df
         return df
 
     def notes(self) -> list[str]:
@@ -462,6 +458,15 @@ class RetrofitResult:
         files.append("retrofit.json")
         files += plots.write_figures(self, d)
         return files
+
+
+def _spearman(x: np.ndarray, y: np.ndarray) -> float:
+    """Spearman rank correlation (average ranks for ties); NaN when either is constant."""
+    if np.ptp(x) == 0 or np.ptp(y) == 0:
+        return math.nan
+    rx = pd.Series(x).rank().to_numpy()
+    ry = pd.Series(y).rank().to_numpy()
+    return float(np.corrcoef(rx, ry)[0, 1])
 
 
 def _frsi(wall: Wall, spec: RetrofitSpec) -> float:
