@@ -298,3 +298,17 @@ add_exterior = [{ material = "EPS", thickness = 0.1 }]
     for f in ("annual_loss.png", "glaser_worst_month.png", "accumulation.png", "glaser_1.csv", "retrofit.json"):
         assert (tmp_path / "out" / f).exists()
     assert res.variants[0].passes >= 1 and not math.isnan(tab["frsi"][0])
+
+
+def test_every_retrofit_key_and_catalogue_material_is_documented():
+    import re
+
+    from conftest import REPO
+
+    doc = (REPO / "docs" / "retrofit.md").read_text()
+    documented = set(re.findall(r"`([A-Za-z_ ]+)`", doc))
+    assert not set(config.RETROFIT_KEYS) - documented
+    assert not set(config.VARIANT_KEYS) - documented
+    assert not set(materials.catalogue()) - documented
+    for col in run.VARIANT_COLUMNS:
+        assert f"`{col}`" in doc
