@@ -312,3 +312,15 @@ def test_every_retrofit_key_and_catalogue_material_is_documented():
     assert not set(materials.catalogue()) - documented
     for col in run.VARIANT_COLUMNS:
         assert f"`{col}`" in doc
+
+
+def test_public_entry_point_is_lazy():
+    """``wallcal.retrofit`` is public, and importing wallcal loads neither pvlib nor the retrofit runner."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, wallcal; assert callable(wallcal.retrofit); "
+        "assert 'pvlib' not in sys.modules and 'wallcal.retrofitting.run' not in sys.modules"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
