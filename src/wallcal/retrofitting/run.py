@@ -424,7 +424,7 @@ class RetrofitResult:
         self.table().to_csv(d / "variants.csv", index=False, float_format="%.6g")
         for k, v in enumerate(self.variants, 1):
             h = v.hourly.copy()
-            h.index = h.index.strftime("%m-%dT%H:%M")
+            h.index = h.index.strftime("%Y-%m-%dT%H:%M")
             h.to_csv(d / f"hourly_{k}.csv", float_format="%.5g")
             files.append(f"hourly_{k}.csv")
             if v.glaser is not None:
