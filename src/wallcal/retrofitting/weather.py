@@ -110,8 +110,10 @@ def resolve_weather(weather: str, base_dir: Path | None = None) -> Path:
     hint = closest(weather, shipped)
     raise StudyError(
         [
-            f"retrofit.weather: {weather!r} is neither a file next to the study nor a shipped weather file; "
-            + (hint if hint.startswith("did you") else "shipped: " + ", ".join(shipped))
+            f"retrofit.weather: {weather!r} is neither a file next to the study nor a shipped weather file"
+            + (f" ({hint})" if hint.startswith("did you") else "")
+            + "; shipped: "
+            + ", ".join(shipped)
         ]
     )
 
