@@ -119,3 +119,16 @@ def test_cli_from_posterior_with_samples_option(posterior_run, capsys):
     )
     assert code == 0, capsys.readouterr().err
     assert len(pd.read_csv(tmp / "o5" / "sample_losses.csv")) == 5
+
+
+def test_wallcal_run_finds_the_study_s_own_posterior_output(tmp_path):
+    write_epw(tmp_path / "w.epw", year_temperature(48))
+    study = load_study(study_with_retrofit(tmp_path, BODY))
+    assert run.find_posterior(study)[0] is None and "no posterior output" in run.find_posterior(study)[1]
+    post = tmp_path / "posterior"
+    _posterior_dir(study, post)
+    (post / "manifest.json").write_text(json.dumps({"study_sha256": "0" * 64}))
+    found, why = run.find_posterior(study)
+    assert found is None and "another version of the study file" in why
+    (post / "manifest.json").write_text(json.dumps({"study_sha256": study.sha256}))
+    assert run.find_posterior(study) == (post.resolve(), "")

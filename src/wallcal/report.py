@@ -143,7 +143,13 @@ def _summary(study, outputs) -> str:
             "<b>Retrofit.</b> "
             + html.escape(
                 "; ".join(
-                    f"{name}: U {row['U']:.3f} W/(m2K), {row['annual_loss_kWh_m2']:.1f} kWh/m2 a year, "
+                    f"{name}: U {row['U']:.3f} W/(m2K), {row['annual_loss_kWh_m2']:.1f} kWh/m2 a year"
+                    + (
+                        f" (5-95 %: {row['annual_loss_p05']:.1f}..{row['annual_loss_p95']:.1f})"
+                        if row["annual_loss_p05"] == row["annual_loss_p05"]
+                        else ""
+                    )
+                    + ", "
                     f"condensation {row['condensation_verdict'] or 'not checked'}"
                     for name, row in vt.iterrows()
                 )

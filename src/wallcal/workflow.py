@@ -347,24 +347,32 @@ def _stage_identifiability(ctx: RunContext, d: Path, so: StageOutput):
 
 
 def _stage_retrofit(ctx: RunContext, d: Path, so: StageOutput):
-    from .retrofitting.run import retrofit
+    from .retrofitting.run import find_posterior, retrofit
 
     if ctx.study.retrofit is None:
         so.status, so.message = "skipped", "the study has no [retrofit] table"
         return
+    post, why = find_posterior(ctx.study)
     cal = ctx.results.get("calibration")
-    res = retrofit(
-        ctx.study,
-        wall=None if cal is None else cal.wall_opt,
-        wall_source="the study's wall" if cal is None else "the calibrated wall",
-    )
+    if post is not None:  # intervals from the study's own posterior output
+        res = retrofit(ctx.study, from_dir=post)
+    else:
+        res = retrofit(
+            ctx.study,
+            wall=None if cal is None else cal.wall_opt,
+            wall_source="the study's wall" if cal is None else "the calibrated wall",
+        )
     so.files += res.write_into(d)
     so.text += res.notes()
-    so.text.append(
-        "Intervals over the posterior draws: run 'wallcal posterior' and then 'wallcal retrofit STUDY --from "
-        "<posterior output>' (wallcal run has no posterior stage, so the interval columns are empty here)."
-    )
+    if post is None:
+        so.text.append(
+            f"No intervals: {why}. Run 'wallcal posterior STUDY' (its default output, posterior/ next to the "
+            "study, is used here when it belongs to this study file), or 'wallcal retrofit STUDY --from "
+            "<posterior output>'."
+        )
     so.tables.append(("Variants over the weather year (variants.csv)", res.table().set_index("variant"), ()))
+    if res.samples is not None:
+        so.tables.append(("Rank correlation of each sampled property with the annual loss", res.spread(), ()))
     so.figures.append(("Annual heat loss per variant", d / "annual_loss.png"))
     if (d / "glaser_worst_month.png").exists():
         so.figures.append(("ISO 13788: Glaser diagram of each variant's worst month", d / "glaser_worst_month.png"))

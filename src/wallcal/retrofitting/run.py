@@ -251,6 +251,23 @@ def base_wall_from(study, wall: Wall | None, from_dir: Path | None) -> tuple[Wal
     )
 
 
+def find_posterior(study) -> tuple[Path | None, str]:
+    """The ``wallcal posterior`` output in its default place (``posterior/`` next to the study) when it was
+    written for this very study file (same sha256 in its manifest); else None and why (for ``wallcal run``)."""
+    if study.path is None:
+        return None, "the study has no file"
+    d = Path(study.path).resolve().parent / "posterior"
+    if not (d / "chain.npz").exists():
+        return None, f"no posterior output at {d}"
+    try:
+        sha = json.loads((d / "manifest.json").read_text()).get("study_sha256")
+    except (OSError, ValueError):
+        sha = None
+    if not sha or sha != study.sha256:
+        return None, f"the posterior output at {d} was written for another version of the study file"
+    return d, ""
+
+
 def _fill_mu(wall: Wall, study_wall: Wall) -> Wall:
     """Layers without mu take the study wall's mu of the same id (mu is not calibrated)."""
     mu = {layer.id: layer.vapour_resistance_factor for layer in study_wall.layers}
