@@ -77,9 +77,8 @@ class YearBoundaries:
 
     ``exterior`` / ``interior``: :class:`BoundaryInput` with ``n_steps + 1`` values at ``k * time_step``
     from the start of the file's first hour; the last value equals the first (the period closes).
-    ``hourly``: at the hour marks 0..N (N = hours in the file): air temperature, plane irradiance (mean of
-    the hour that ends there... centred: the mean of the two hours around the mark), sky temperature,
-    sol-air temperature.
+    ``hourly``: series at the hour marks 0..N (N = hours in the file): air temperature, plane irradiance and
+    sky temperature (each hour's value spread half onto each of its two marks), sol-air temperature.
     """
 
     exterior: BoundaryInput

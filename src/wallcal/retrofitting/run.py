@@ -197,7 +197,7 @@ def _apply_named(wall: Wall, names: list[str], x: np.ndarray) -> Wall:
     return wall
 
 
-def load_samples(from_dir: Path, wall: Wall, n_max: int, seed: int = 1) -> Samples:
+def load_samples(from_dir: Path, wall: Wall, n_max: int) -> Samples:
     """Posterior samples from a ``wallcal posterior`` output (``chain.npz``, ``posterior.json``): the chain
     after its burn-in, thinned as the posterior did, at most ``n_max`` draws evenly spread."""
     chain_f, info_f = from_dir / "chain.npz", from_dir / "posterior.json"
