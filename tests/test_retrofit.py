@@ -170,6 +170,11 @@ def test_sky_temperature_from_infrared_and_plane_irradiance_of_a_north_wall(tmp_
     ir = np.full(48, 300.0)
     wx = weather.read_weather(write_epw(tmp_path / "w.epw", t, ir=ir, ghi=np.full(48, 0.0)))
     np.testing.assert_allclose(weather.sky_temperature(wx), (300.0 / SIGMA) ** 0.25 - 273.15, atol=1e-9)
+    # no infrared field (9999): Clark and Allen from the dew point 5 degC (278.15 K) and opaque sky cover 5:
+    # eps = (0.787 + 0.764 ln(278.15 / 273)) (1 + 0.0224 * 5 - 0.0035 * 25 + 0.00028 * 125)
+    #     = (0.787 + 0.764 * 0.018689) * 1.0595 = 0.84895; T_sky = 0.84895^0.25 * 283.15 K = -1.357 degC
+    wx = weather.read_weather(write_epw(tmp_path / "n.epw", t, ir=np.full(48, 9999.0)))
+    np.testing.assert_allclose(weather.sky_temperature(wx), -1.3574, atol=1e-4)
     # only diffuse light (dhi = ghi, dni = 0), overcast: a vertical wall sees part of the sky and the ground
     day = np.zeros(48)
     day[8:16] = day[32:40] = 200.0
