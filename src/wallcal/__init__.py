@@ -12,6 +12,7 @@ from . import _numba_setup  # noqa: E402
 _numba_setup.configure()  # before any kernel is compiled or loaded (see the module)
 
 from .errors import DataError, EngineError, StudyError, WallcalError  # noqa: E402
+from .retrofitting import retrofit  # noqa: E402  (cheap: pvlib and the engine load when it runs)
 from .simulation import SimulationResult, prepare, simulate  # noqa: E402
 from .study import Study, dump_wall, load_study, load_wall  # noqa: E402
 from .wall import Layer, Probe, Wall  # noqa: E402
@@ -31,5 +32,6 @@ __all__ = [
     "load_study",
     "load_wall",
     "prepare",
+    "retrofit",
     "simulate",
 ]

@@ -136,6 +136,26 @@ def _summary(study, outputs) -> str:
                 "conductivities and heat capacities): add a heat-flux sensor to the targets to identify it."
             )
         items.append("<b>Wall figures.</b> " + html.escape(txt + "." + caveat))
+    r = by.get("retrofit")
+    if r and r.status == "ok" and r.tables:
+        vt = r.tables[0][1]
+        items.append(
+            "<b>Retrofit.</b> "
+            + html.escape(
+                "; ".join(
+                    f"{name}: U {row['U']:.3f} W/(m2K), {row['annual_loss_kWh_m2']:.1f} kWh/m2 a year"
+                    + (
+                        f" (5-95 %: {row['annual_loss_p05']:.1f}..{row['annual_loss_p95']:.1f})"
+                        if row["annual_loss_p05"] == row["annual_loss_p05"]
+                        else ""
+                    )
+                    + ", "
+                    f"condensation {row['condensation_verdict'] or 'not checked'}"
+                    for name, row in vt.iterrows()
+                )
+                + "."
+            )
+        )
     failed = [o for o in outputs if o.status == "failed"]
     if failed:
         items.append(

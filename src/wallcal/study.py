@@ -12,6 +12,7 @@ import datetime as _dt
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from .calibration.space import CALIBRATION_KEYS, ParameterSpace, parse_calibration
 from .errors import StudyError, closest
@@ -167,6 +168,7 @@ class Study:
     simulation: SimulationSpec
     description: str = ""
     calibration: ParameterSpace | None = None
+    retrofit: Any = None  # wallcal.retrofitting.config.RetrofitSpec, from the [retrofit] table
     path: Path | None = None
     raw: dict = field(default_factory=dict, compare=False, repr=False)
     sha256: str = ""
@@ -184,7 +186,7 @@ class Study:
 
 
 # ============================================================================ the study
-TOP_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation", "calibration")
+TOP_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation", "calibration", "retrofit")
 STUDY_KEYS = ("name", "description")
 DATA_KEYS = (
     "file",
@@ -494,6 +496,11 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         calib = parse_calibration(
             ct, problems, wall if wall_clean else None, sensors, sensor_names=sensor_names, base_dir=base_dir
         )
+    retrofit = None
+    if top.has("retrofit"):
+        from .retrofitting.config import parse_retrofit
+
+        retrofit = parse_retrofit(top.raw("retrofit"), problems, base_dir, wall)
 
     if problems:
         raise StudyError(problems, source=source)
@@ -510,6 +517,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         period=period,
         simulation=sim,
         calibration=calib,
+        retrofit=retrofit,
         raw=raw,
     )
     return study

@@ -70,6 +70,9 @@ class Layer:
         Thermal resistance to the next layer inwards [m2K/W].
     thermal_resistance : float or None
         For a no-mass resistive layer: its resistance [m2K/W].
+    vapour_resistance_factor : float or None
+        Water vapour diffusion resistance factor mu [-] (ISO 10456); needed only by
+        the ISO 13788 condensation check (:mod:`wallcal.retrofitting.glaser`).
     """
 
     id: str
@@ -83,6 +86,7 @@ class Layer:
     conductivity_table: tuple[tuple[float, float], ...] | None = None
     contact_resistance: float = 0.0
     thermal_resistance: float | None = None
+    vapour_resistance_factor: float | None = None
 
     @property
     def is_massless(self) -> bool:

@@ -28,6 +28,7 @@ LAYER_KEYS = (
     "reference_temperature",
     "conductivity_table",
     "contact_resistance",
+    "vapour_resistance_factor",
     "thermal_resistance",
 )
 PROBE_KEYS = ("name", "depth", "depth_from", "side")
@@ -102,6 +103,7 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None) -> Wall | No
                 )
         kw["reference_temperature"] = lt.num("reference_temperature", 10.0, ge=-100.0, le=200.0)
         kw["contact_resistance"] = lt.num("contact_resistance", 0.0, ge=0.0)
+        kw["vapour_resistance_factor"] = lt.num("vapour_resistance_factor", None, gt=0.0)
         material = lt.str("material", "")
         if (
             None in (lid, thickness)
@@ -214,6 +216,8 @@ def wall_to_dict(wall: Wall) -> dict:
             d["reference_temperature"] = layer.reference_temperature
         if layer.contact_resistance:
             d["contact_resistance"] = layer.contact_resistance
+        if layer.vapour_resistance_factor is not None:
+            d["vapour_resistance_factor"] = layer.vapour_resistance_factor
         layers.append(d)
     out: dict[str, Any] = {}
     if wall.name:

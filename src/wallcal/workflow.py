@@ -10,6 +10,7 @@ Stages, in the order of the reference study:
 6. ``crosscheck`` - base and calibrated walls in every engine (Table VIII)
 7. ``standards`` - ISO 6946 U-value and ISO 13786 dynamic figures before and after, ISO 9869-1 verdict
 8. ``identifiability`` - which calibrated properties the data identify
+9. ``retrofit`` - the study's ``[retrofit]`` variants from the calibrated wall over a weather year
 
 Each stage writes its machine-readable results in its own sub-directory of the
 output and returns a :class:`StageOutput` for the report. A failing *optional*
@@ -339,6 +340,40 @@ def _stage_identifiability(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["identifiability"] = res
 
 
+def _stage_retrofit(ctx: RunContext, d: Path, so: StageOutput):
+    from .retrofitting.run import find_posterior, retrofit
+
+    if ctx.study.retrofit is None:
+        so.status, so.message = "skipped", "the study has no [retrofit] table"
+        return
+    post, why = find_posterior(ctx.study)
+    cal = ctx.results.get("calibration")
+    if post is not None:  # intervals from the study's own posterior output
+        res = retrofit(ctx.study, from_dir=post)
+    else:
+        res = retrofit(
+            ctx.study,
+            wall=None if cal is None else cal.wall_opt,
+            wall_source="the study's wall" if cal is None else "the calibrated wall",
+        )
+    so.files += res.write_into(d)
+    so.text += res.notes()
+    if post is None:
+        so.text.append(
+            f"No intervals: {why}. Run 'wallcal posterior STUDY' (its default output, posterior/ next to the "
+            "study, is used here when it belongs to this study file), or 'wallcal retrofit STUDY --from "
+            "<posterior output>'."
+        )
+    so.tables.append(("Variants over the weather year (variants.csv)", res.table().set_index("variant"), ()))
+    if res.samples is not None:
+        so.tables.append(("Rank correlation of each sampled property with the annual loss", res.spread(), ()))
+    so.figures.append(("Annual heat loss per variant", d / "annual_loss.png"))
+    if (d / "glaser_worst_month.png").exists():
+        so.figures.append(("ISO 13788: Glaser diagram of each variant's worst month", d / "glaser_worst_month.png"))
+        so.figures.append(("ISO 13788: accumulated condensate month by month", d / "accumulation.png"))
+    ctx.results["retrofit"] = res
+
+
 STAGES = [
     Stage("data", "Measurements", _stage_data, required=True),
     Stage("engines", "Base case in every engine", _stage_engines, required=True),
@@ -348,6 +383,7 @@ STAGES = [
     Stage("crosscheck", "Cross-check of the walls in every engine", _stage_crosscheck),
     Stage("standards", "Standards: U-value, dynamic characteristics, ISO 9869-1", _stage_standards),
     Stage("identifiability", "How well the data identify each property", _stage_identifiability),
+    Stage("retrofit", "Retrofit variants over a weather year", _stage_retrofit),
 ]
 
 

@@ -9,7 +9,7 @@ def register(sub) -> None:
     p = sub.add_parser(
         "run",
         help="the whole study: data, engines, grid, sensitivity, calibration, "
-        "cross-check, standards, identifiability, and an HTML report",
+        "cross-check, standards, identifiability, retrofit, and an HTML report",
         description="Run every stage of the study and write DIR/index.html (self-contained) with "
         "each stage's machine-readable results in DIR/<stage>/. A failing optional "
         "stage is reported, not fatal.",
@@ -20,7 +20,7 @@ def register(sub) -> None:
         "--skip",
         default="",
         help="comma-separated stages to leave out "
-        "(data, engines, grid, sensitivity, calibration, crosscheck, standards, identifiability)",
+        "(data, engines, grid, sensitivity, calibration, crosscheck, standards, identifiability, retrofit)",
     )
     p.add_argument("--engines", help="comma-separated engines (default: every available one)")
     p.add_argument("--quick", action="store_true", help="smaller grid study and swarm (a preview)")

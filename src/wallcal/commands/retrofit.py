@@ -1,0 +1,74 @@
+"""``wallcal retrofit STUDY [--wall WALL.toml | --from DIR] --out OUT``: the study's retrofit variants over a
+weather year (U, annual loss and peak, ISO 13788, intervals from posterior draws)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ._format import table
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "retrofit",
+        help="retrofit variants over a weather year: U, annual loss, peak, condensation, intervals",
+        description="Run every [[retrofit.variants]] of the study over the [retrofit] weather year from a "
+        "periodic state. Writes variants.csv (U, annual loss with its 5-95 %% interval over posterior draws, "
+        "saving, peak loss, minimum interior surface temperature, f_Rsi, ISO 13788 condensation), per-variant "
+        "hourly_<k>.csv and glaser_<k>.csv, retrofit.json and figures. See docs/retrofit.md.",
+    )
+    p.add_argument("study", help="study file (TOML) with a [retrofit] table")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--wall", metavar="WALL.toml", help="start the variants from this wall instead of the study's")
+    src.add_argument(
+        "--from",
+        dest="from_dir",
+        metavar="DIR",
+        help="a 'wallcal calibrate' output (its calibrated wall) or a 'wallcal posterior' output (its draws)",
+    )
+    p.add_argument("--out", metavar="DIR", help="output directory (default: retrofit/ next to the study)")
+    p.add_argument("--samples", type=int, metavar="N", help="posterior draws used (default: retrofit.samples)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..errors import StudyError
+    from ..retrofitting.run import retrofit
+    from ..study import load_study, load_wall
+
+    study = load_study(args.study)
+    if args.samples is not None and args.samples < 1:
+        raise StudyError([f"--samples: must be >= 1, got {args.samples}"])
+    wall = load_wall(args.wall) if args.wall else None
+    out = Path(args.out) if args.out else Path(args.study).resolve().parent / "retrofit"
+    res = retrofit(study, wall=wall, from_dir=args.from_dir, out=out, samples=args.samples, progress=not args.quiet)
+    tab = res.table().set_index("variant")
+    print(f"{study.name or Path(args.study).name}: {len(res.variants)} variant(s), {res.seconds:.1f} s")
+    print()
+    print(
+        table(
+            tab[["U", "annual_loss_kWh_m2", "annual_loss_p05", "annual_loss_p95", "saving_vs_first_kWh_m2"]],
+            "Annual heat loss through the wall (kWh/m2, net; U in W/(m2K))",
+        )
+    )
+    print()
+    print(
+        table(
+            tab[
+                [
+                    "peak_loss_W_m2",
+                    "min_interior_surface_temperature",
+                    "frsi",
+                    "condensation_max_kg_m2",
+                    "condensation_verdict",
+                ]
+            ],
+            "Peak loss (W/m2), interior surface (degC), ISO 13788",
+        )
+    )
+    print()
+    for note in res.notes():
+        print(f"- {note}")
+    print(f"\nwrote {out}/variants.csv and the per-variant series and figures")
+    return 0

@@ -1,0 +1,631 @@
+"""Retrofit runs: every variant over a weather year from a periodic state, with ISO 13788 and uncertainty.
+
+For each variant: its wall (:func:`.config.apply_variant` on the base wall), U (ISO 6946 with Rsi = 1/h_i,
+Rse = 1/h_e), an engine run over the weather file driven by :func:`.boundary.year_boundaries` (sol-air
+exterior, constant interior air), and ISO 13788 (:mod:`.glaser`) on the weather file's monthly means.
+
+The year: the weather period is treated as periodic. A warm-up over its last 30 days (from the steady
+state of its first boundary values) gives the state at its start; then the period runs again and again,
+each pass from the end state of the last, until the end state equals the start state within
+``PERIODIC_TOLERANCE`` at every node. The annual figures are those of the last pass, so they do not
+depend on the initial temperatures; ``passes`` says how many full periods ran.
+
+Annual loss: with q_i the heat flux density at the interior surface, positive towards the interior (into
+the room; wallcal's convention), the loss is -q_i, the heat leaving the room into the wall, and
+``annual_loss_kWh_m2`` = integral of -q_i dt over the period / 3.6e6 (trapezoids at the engine's steps): a
+net figure (hours in which the wall gives heat to the room count negative). ``peak_loss_W_m2`` = max of -q_i.
+
+Uncertainty: with posterior samples every variant runs for every sample (the sampled properties applied
+to the base wall, then the variant's changes) in one batch call of the engine; p05 and p95 are the 5 % and
+95 % quantiles of the samples' annual losses, and the Spearman rank correlation of each sampled property
+with the annual loss says which properties make the spread.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import DataError, StudyError
+from ..wall import Probe, Wall
+from .boundary import YearBoundaries, year_boundaries
+from .config import RetrofitSpec, VariantSpec, apply_variant
+from .weather import Weather, monthly_climate, read_weather, resolve_weather
+
+#: Periodic state: largest change of any node temperature over one pass [K]
+PERIODIC_TOLERANCE = 1e-3
+MAX_PASSES = 20
+WARMUP_DAYS = 30
+#: Grid: the engine's C-rule grid built for this step and C (dx = sqrt(C alpha dt_grid)), run at the
+#: retrofit time step; see docs/retrofit.md for the convergence check behind the choice.
+GRID_TIME_STEP = 600.0
+GRID_CONSTANT = 2.0
+
+VARIANT_COLUMNS = (
+    "variant",
+    "U",
+    "annual_loss_kWh_m2",
+    "annual_loss_p05",
+    "annual_loss_p95",
+    "saving_vs_first_kWh_m2",
+    "peak_loss_W_m2",
+    "min_interior_surface_temperature",
+    "frsi",
+    "condensation_max_kg_m2",
+    "condensation_verdict",
+)
+
+
+# ============================================================================ the engine over a year
+@dataclass
+class YearRun:
+    """Outputs of a periodic year run for a batch of walls (same layer structure).
+
+    ``t_si``, ``t_se`` [degC], ``q_i``, ``q_e`` [W/m2, positive towards the interior], shape (n_walls,
+    n_steps + 1) (NaN for rows not asked for); ``passes``: full periods run; ``residual``: the last pass's
+    largest node change [K]; ``path``: engine path.
+    """
+
+    t_si: np.ndarray
+    t_se: np.ndarray
+    q_i: np.ndarray
+    q_e: np.ndarray
+    time_step: float
+    passes: int
+    residual: float
+    path: str
+    nodes: int
+
+    @property
+    def annual_loss_kWh_m2(self) -> np.ndarray:
+        """Net heat leaving the room through the interior surface over the period [kWh/m2] (trapezoids)."""
+        loss = -self.q_i
+        return (loss[:, 1:] + loss[:, :-1]).sum(axis=1) * 0.5 * self.time_step / 3.6e6
+
+    @property
+    def peak_loss_W_m2(self) -> np.ndarray:
+        return (-self.q_i).max(axis=1)
+
+
+def _with_face_probes(wall: Wall) -> Wall:
+    return wall.replace(probes=(Probe("__se", 0.0), Probe("__si", wall.thickness)))
+
+
+def periodic_year(
+    walls: list[Wall],
+    yb: YearBoundaries,
+    *,
+    all_rows: bool = True,
+    tolerance: float = PERIODIC_TOLERANCE,
+    grid_time_step: float = GRID_TIME_STEP,
+    grid_constant: float = GRID_CONSTANT,
+) -> YearRun:
+    """Run walls (same layer structure) over the period of ``yb`` until the state repeats.
+
+    ``all_rows=False`` forms only the interior surface temperature and flux (what the batch needs).
+    """
+    from ..engines.base import BoundaryInput, SimulationInput
+    from ..engines.fd import FDEngine, PreparedFD
+    from ..grid import PropertyArrays
+
+    walls = [_with_face_probes(w) for w in walls]
+    n = yb.n_steps
+    dt = yb.time_step
+    inp = SimulationInput(
+        wall=walls[0],
+        t0=pd.Timestamp("2021-01-01"),
+        time_step=dt,
+        exterior=yb.exterior,
+        interior=yb.interior,
+        output_positions=np.arange(n + 1, dtype=float),
+        probes=("__se", "__si"),
+        flux_faces=("exterior", "interior"),
+        grid_constant=grid_constant,
+        scheme="cn",
+        options={"grid_time_step": min(grid_time_step, dt)},
+    )
+    prep = FDEngine("cn").prepare(inp)
+    m = min(int(round(WARMUP_DAYS * 86400 / dt)), n)
+    inp_w = dataclasses.replace(
+        inp,
+        exterior=BoundaryInput(yb.exterior.type, yb.exterior.values[n - m :], yb.exterior.surface_coefficient),
+        interior=BoundaryInput(yb.interior.type, yb.interior.values[n - m :], yb.interior.surface_coefficient),
+        output_positions=np.array([float(m)]),
+    )
+    prep_w = PreparedFD(inp_w, prep.grid, stiff_limit=prep.stiff_limit)
+    props = PropertyArrays.from_walls(walls)
+    depths = prep.probe_depth_matrix(walls)
+    rows = None if all_rows else np.array([False, True, False, True])
+    state = prep_w.run_batch(props, depths, rows=np.array([False, True, False, False])).final_state
+    passes, residual = 0, math.inf
+    while passes < MAX_PASSES:
+        res = prep.run_batch(props, depths, initial_state=state, rows=rows)
+        passes += 1
+        residual = float(np.max(np.abs(res.final_state - state)))
+        state = res.final_state
+        if residual < tolerance:
+            break
+    else:
+        from ..errors import EngineError
+
+        raise EngineError(
+            f"the year did not become periodic in {MAX_PASSES} passes (last change {residual:.3g} K); "
+            "the wall's time constant is longer than the weather period allows"
+        )
+    out = res.out
+    return YearRun(
+        t_se=out[:, 0],
+        t_si=out[:, 1],
+        q_e=out[:, 2],
+        q_i=out[:, 3],
+        time_step=dt,
+        passes=passes,
+        residual=residual,
+        path=res.path,
+        nodes=prep.grid.n_nodes,
+    )
+
+
+# ============================================================================ uncertainty inputs
+@dataclass
+class Samples:
+    """Posterior draws applied to a base wall: ``walls`` (one per draw), ``values`` (draw x parameter, SI),
+    ``names`` (parameter names as the posterior wrote them), ``point`` (the posterior-median wall)."""
+
+    walls: list[Wall]
+    values: np.ndarray
+    names: list[str]
+    point: Wall
+    source: str
+
+
+def _apply_named(wall: Wall, names: list[str], x: np.ndarray) -> Wall:
+    """Apply parameter values named like the calibration space's ('conductivity[5,8]'); probe depths skip."""
+    for name, v in zip(names, x, strict=True):
+        prop, _, ids = name.partition("[")
+        if prop == "depth":
+            continue
+        for lid in ids.rstrip("]").split(","):
+            wall = wall.replace_layer(lid, **{prop: float(v)})
+    return wall
+
+
+def load_samples(from_dir: Path, wall: Wall, n_max: int) -> Samples:
+    """Posterior samples from a ``wallcal posterior`` output (``chain.npz``, ``posterior.json``): the chain
+    after its burn-in, thinned as the posterior did, at most ``n_max`` draws evenly spread."""
+    chain_f, info_f = from_dir / "chain.npz", from_dir / "posterior.json"
+    try:
+        with np.load(chain_f, allow_pickle=False) as z:
+            chain, names, lower, upper = z["chain"], [str(s) for s in z["names"]], z["lower"], z["upper"]
+        info = json.loads(info_f.read_text())
+        burn, thin = int(info.get("burn", 0)), max(1, int(info.get("thin", 1)))
+    except (OSError, KeyError, ValueError) as exc:
+        raise DataError(f"{from_dir}: not a readable posterior output (chain.npz, posterior.json): {exc}") from exc
+    if chain.ndim != 3 or chain.shape[2] != len(names):
+        raise DataError(f"{chain_f}: chain has shape {chain.shape}, expected (steps, walkers, {len(names)})")
+    flat = chain[burn::thin].reshape(-1, chain.shape[2])
+    if len(flat) == 0:
+        raise DataError(f"{from_dir}: no posterior draw after the burn-in")
+    X = lower + flat * (upper - lower)
+    ids = {layer.id for layer in wall.layers}
+    for name in names:
+        prop, _, lids = name.partition("[")
+        if prop != "depth":
+            bad = [i for i in lids.rstrip("]").split(",") if i not in ids]
+            if bad:
+                raise StudyError(
+                    [f"{chain_f}: parameter {name!r} names layer(s) {', '.join(bad)} that the wall does not have"]
+                )
+    pick = np.unique(np.linspace(0, len(X) - 1, min(n_max, len(X))).round().astype(int))
+    Xs = X[pick]
+    walls = [_apply_named(wall, names, x) for x in Xs]
+    point = _apply_named(wall, names, np.median(X, axis=0))
+    return Samples(walls=walls, values=Xs, names=names, point=point, source=str(from_dir))
+
+
+def base_wall_from(study, wall: Wall | None, from_dir: Path | None) -> tuple[Wall, str, Path | None]:
+    """The wall the variants start from and where it comes from; a posterior folder is returned too."""
+    from ..study import load_wall
+
+    if wall is not None and from_dir is not None:
+        raise StudyError(["give --wall or --from, not both"])
+    if wall is not None:
+        return _fill_mu(wall, study.wall), "the given wall", None
+    if from_dir is None:
+        return study.wall, "the study's wall", None
+    from_dir = Path(from_dir)
+    if (from_dir / "chain.npz").exists():
+        return study.wall, f"the posterior in {from_dir}", from_dir
+    cal = from_dir / "calibrated_wall.toml"
+    if cal.exists():
+        return _fill_mu(load_wall(cal), study.wall), f"the calibrated wall of {from_dir}", None
+    raise StudyError(
+        [f"--from {from_dir}: neither a calibrate output (calibrated_wall.toml) nor a posterior output (chain.npz)"]
+    )
+
+
+def find_posterior(study) -> tuple[Path | None, str]:
+    """The ``wallcal posterior`` output in its default place (``posterior/`` next to the study) when it was
+    written for this very study file (same sha256 in its manifest); else None and why (for ``wallcal run``)."""
+    if study.path is None:
+        return None, "the study has no file"
+    d = Path(study.path).resolve().parent / "posterior"
+    if not (d / "chain.npz").exists():
+        return None, f"no posterior output at {d}"
+    try:
+        sha = json.loads((d / "manifest.json").read_text()).get("study_sha256")
+    except (OSError, ValueError):
+        sha = None
+    if not sha or sha != study.sha256:
+        return None, f"the posterior output at {d} was written for another version of the study file"
+    return d, ""
+
+
+def _fill_mu(wall: Wall, study_wall: Wall) -> Wall:
+    """Layers without mu take the study wall's mu of the same id (mu is not calibrated)."""
+    mu = {layer.id: layer.vapour_resistance_factor for layer in study_wall.layers}
+    return wall.replace(
+        layers=tuple(
+            layer.replace(vapour_resistance_factor=mu.get(layer.id))
+            if layer.vapour_resistance_factor is None and mu.get(layer.id) is not None
+            else layer
+            for layer in wall.layers
+        )
+    )
+
+
+# ============================================================================ the result
+@dataclass
+class VariantResult:
+    """One variant: its wall, the contract figures, the hourly series, ISO 13788 and the sample losses."""
+
+    spec: VariantSpec
+    wall: Wall
+    u_value: float
+    annual_loss: float
+    peak_loss: float
+    min_surface_temperature: float
+    passes: int
+    residual: float
+    hourly: pd.DataFrame
+    glaser: object = None
+    sample_losses: np.ndarray | None = None
+
+    @property
+    def p05(self) -> float:
+        return float(np.percentile(self.sample_losses, 5)) if self.sample_losses is not None else math.nan
+
+    @property
+    def p95(self) -> float:
+        return float(np.percentile(self.sample_losses, 95)) if self.sample_losses is not None else math.nan
+
+
+@dataclass
+class RetrofitResult:
+    """Every variant's figures over the weather year (see the module docstring)."""
+
+    study: object
+    spec: RetrofitSpec
+    weather: Weather
+    wall_source: str
+    variants: list[VariantResult]
+    samples: Samples | None = None
+    seconds: float = 0.0
+    info: dict = field(default_factory=dict)
+
+    def table(self) -> pd.DataFrame:
+        """``variants.csv``: the contract columns, one row per variant."""
+        first = self.variants[0].annual_loss
+        rows = []
+        for v in self.variants:
+            g = v.glaser
+            rows.append(
+                {
+                    "variant": v.spec.name,
+                    "U": v.u_value,
+                    "annual_loss_kWh_m2": v.annual_loss,
+                    "annual_loss_p05": v.p05,
+                    "annual_loss_p95": v.p95,
+                    "saving_vs_first_kWh_m2": first - v.annual_loss,
+                    "peak_loss_W_m2": v.peak_loss,
+                    "min_interior_surface_temperature": v.min_surface_temperature,
+                    "frsi": g.frsi if g is not None else _frsi(v.wall, self.spec),
+                    "condensation_max_kg_m2": g.max_accumulated if g is not None else math.nan,
+                    "condensation_verdict": g.verdict if g is not None else "",
+                }
+            )
+        return pd.DataFrame(rows, columns=list(VARIANT_COLUMNS))
+
+    def spread(self) -> pd.DataFrame:
+        """Spearman rank correlation of each sampled property with each variant's annual loss, plus the
+        correlation with the sampled wall's total resistance (the common-scale direction)."""
+        if self.samples is None:
+            return pd.DataFrame()
+        if getattr(self, "_spread", None) is not None:
+            return self._spread
+        S = self.samples
+        cols = {}
+        r_tot = np.array([w.resistance for w in S.walls])
+        for v in self.variants:
+            y = v.sample_losses[: len(S.walls)]
+            col = {name: _spearman(S.values[:, j], y) for j, name in enumerate(S.names)}
+            col["R total of the sampled wall"] = _spearman(r_tot, y)
+            cols[v.spec.name] = col
+        df = pd.DataFrame(cols)
+        df.index.name = "sampled property"
+        self._spread = df
+        return df
+
+    def notes(self) -> list[str]:
+        """Plain sentences for the terminal and the report."""
+        s = self.spec
+        first = self.variants[0]
+        out = [
+            f"weather {self.weather.name} ({self.weather.hours} h, lat {self.weather.latitude:.2f}, "
+            f"lon {self.weather.longitude:.2f}); wall facing {s.azimuth:g} deg from north; solar absorptance "
+            f"{s.solar_absorptance:g}; sky radiation {'on' if s.sky_radiation else 'off'}; h_e "
+            f"{s.exterior_surface_coefficient:g}, h_i {s.interior_surface_coefficient:g} W/(m2K); interior "
+            f"{s.interior_temperature:g} degC, "
+            + (
+                f"humidity class {s.interior_humidity_class}"
+                if s.interior_humidity_class
+                else f"RH {s.interior_relative_humidity:g}"
+            )
+            + f"; variants start from {self.wall_source}.",
+            f"periodic year: {first.passes} pass(es) after a {WARMUP_DAYS}-day warm-up for the first variant "
+            f"(max over variants {max(v.passes for v in self.variants)}), last change "
+            f"{max(v.residual for v in self.variants):.1e} K < {PERIODIC_TOLERANCE:g} K; time step "
+            f"{s.time_step:g} s; annual loss = net heat leaving the room through the wall (hours of gain count "
+            "negative).",
+        ]
+        for v in self.variants:
+            g = v.glaser
+            if g is not None and not g.mould_ok:
+                out.append(
+                    f"{v.spec.name}: f_Rsi {g.frsi:.3f} <= f_Rsi,min {g.frsi_min:.3f} (month {g.critical_month}): "
+                    "mould risk at the interior surface (ISO 13788, surface RH 0.8)"
+                )
+        if self.samples is not None:
+            sp = self.spread()
+            dominant = sp.drop(index="R total of the sampled wall").abs().mean(axis=1).sort_values(ascending=False)
+            top = [f"{k} ({sp.loc[k].mean():+.2f})" for k in dominant.index[:3] if np.isfinite(dominant[k])]
+            rt = float(sp.loc["R total of the sampled wall"].mean())
+            width = {v.spec.name: v.p95 - v.p05 for v in self.variants}
+            narrowest = min(width, key=width.get)
+            out.append(
+                f"{len(self.samples.walls)} posterior draws per variant from {self.samples.source}; the spread of "
+                f"the annual loss comes mostly from {', '.join(top)} (Spearman rank correlation with the annual "
+                f"loss, mean over the variants); its rank correlation with the sampled wall's total thermal "
+                f"resistance is {rt:+.2f}. The 5-95 % interval is {width[first.spec.name]:.2f} kWh/m2 wide for "
+                f"{first.spec.name!r} and {width[narrowest]:.2f} kWh/m2 for {narrowest!r}."
+            )
+            out.append(
+                "The temperatures inside a wall fix the ratios of its layers' resistances much better than their "
+                "common scale: scaling every conductivity together barely moves the temperature profiles but moves "
+                "U and the heat loss in proportion. That direction shows up here"
+                + (" (the spread follows the total resistance almost one to one)" if abs(rt) > 0.9 else "")
+                + "; a heat-flux sensor in the monitoring campaign measures the heat flow that fixes the scale and "
+                "would narrow these intervals. Layers a variant adds come from the catalogue, not from the data, so "
+                "the more of the total resistance they carry, the narrower the interval."
+            )
+        return out
+
+    # ------------------------------------------------------------------ writing
+    def write(self, out_dir) -> Path:
+        from ..outputs import output_dir
+
+        manifest = {
+            "command": "retrofit",
+            "study_file": str(self.study.path) if self.study.path else None,
+            "study_sha256": self.study.sha256,
+            "weather": str(self.weather.path),
+        }
+        with output_dir(out_dir, manifest=manifest) as tmp:
+            self.write_into(Path(tmp))
+        return Path(out_dir)
+
+    def write_into(self, d: Path) -> list[str]:
+        """Write ``variants.csv``, per-variant ``hourly_<k>.csv`` / ``glaser_<k>.csv``, ``spread.csv`` (with
+        samples), ``retrofit.json`` and the figures into ``d``; returns the file names."""
+        from . import plots
+
+        d = Path(d)
+        files = ["variants.csv"]
+        self.table().to_csv(d / "variants.csv", index=False, float_format="%.6g")
+        for k, v in enumerate(self.variants, 1):
+            h = v.hourly.copy()
+            h.index = h.index.strftime("%Y-%m-%dT%H:%M")
+            h.to_csv(d / f"hourly_{k}.csv", float_format="%.5g")
+            files.append(f"hourly_{k}.csv")
+            if v.glaser is not None:
+                v.glaser.table.to_csv(d / f"glaser_{k}.csv", float_format="%.6g")
+                files.append(f"glaser_{k}.csv")
+        if self.samples is not None:
+            self.spread().to_csv(d / "spread.csv", float_format="%.4f")
+            files.append("spread.csv")
+            pd.DataFrame({v.spec.name: v.sample_losses for v in self.variants}).to_csv(
+                d / "sample_losses.csv", index_label="sample", float_format="%.6g"
+            )
+            files.append("sample_losses.csv")
+        info = {
+            "variants": [
+                {
+                    "index": k,
+                    "name": v.spec.name,
+                    "passes": v.passes,
+                    "periodic_residual_K": v.residual,
+                    "layers": [layer.id for layer in v.wall.layers],
+                }
+                for k, v in enumerate(self.variants, 1)
+            ],
+            "weather": self.weather.name,
+            "wall_source": self.wall_source,
+            "seconds": self.seconds,
+            "notes": self.notes(),
+            **self.info,
+        }
+        (d / "retrofit.json").write_text(json.dumps(info, indent=2, default=float))
+        files.append("retrofit.json")
+        files += plots.write_figures(self, d)
+        return files
+
+
+def _spearman(x: np.ndarray, y: np.ndarray) -> float:
+    """Spearman rank correlation (average ranks for ties); NaN when either is constant."""
+    if np.ptp(x) == 0 or np.ptp(y) == 0:
+        return math.nan
+    rx = pd.Series(x).rank().to_numpy()
+    ry = pd.Series(y).rank().to_numpy()
+    return float(np.corrcoef(rx, ry)[0, 1])
+
+
+def _frsi(wall: Wall, spec: RetrofitSpec) -> float:
+    from .glaser import temperature_factor
+
+    return temperature_factor(wall, rse=1.0 / spec.exterior_surface_coefficient)
+
+
+# ============================================================================ the entry point
+def retrofit(
+    study, *, wall=None, from_dir=None, out=None, samples=None, progress=False, wall_source=None
+) -> RetrofitResult:
+    """Run every ``[retrofit]`` variant of a study over its weather year.
+
+    Parameters
+    ----------
+    study : Study
+        With a ``[retrofit]`` table.
+    wall : Wall, optional
+        Start from this wall instead of the study's (``--wall``).
+    from_dir : path, optional
+        A ``wallcal calibrate`` output (its calibrated wall) or a ``wallcal posterior`` output (its samples).
+    out : path, optional
+        Write the outputs there (atomically).
+    samples : int, optional
+        At most this many posterior draws; default ``retrofit.samples``.
+    progress : bool
+        Print a line per variant on stderr.
+    wall_source : str, optional
+        How the report names the wall given as ``wall`` (default "the given wall").
+
+    Returns
+    -------
+    RetrofitResult
+    """
+    import sys
+
+    from ..standards import iso6946
+    from .glaser import monthly_method
+
+    spec: RetrofitSpec | None = getattr(study, "retrofit", None)
+    if spec is None:
+        raise StudyError(
+            ["retrofit: the study has no [retrofit] table (see docs/retrofit.md)"],
+            source=str(study.path) if study.path else None,
+        )
+    t_start = time.perf_counter()
+    base, source, post_dir = base_wall_from(study, wall, from_dir)
+    source = wall_source or source
+    base_dir = study.path.parent if study.path else None
+    weather = read_weather(resolve_weather(spec.weather, base_dir))
+    yb = year_boundaries(weather, spec)
+    # every variant's wall first: a bad variant fails before any run
+    problems = []
+    vwalls = []
+    for v in spec.variants:
+        try:
+            vwalls.append(apply_variant(base, v))
+        except StudyError as exc:
+            problems += exc.problems
+    if problems:
+        raise StudyError(problems, source=str(study.path) if study.path else None)
+    smp = None
+    if post_dir is not None:
+        smp = load_samples(post_dir, base, samples or spec.samples)
+        vwalls = [apply_variant(smp.point, v) for v in spec.variants]
+    climate = monthly_climate(weather)
+    glasers = []
+    if spec.condensation_check:
+        for v, w in zip(spec.variants, vwalls, strict=True):
+            try:
+                glasers.append(
+                    monthly_method(
+                        w,
+                        climate,
+                        spec.interior_temperature,
+                        relative_humidity=spec.interior_relative_humidity,
+                        humidity_class=spec.interior_humidity_class,
+                        rsi=1.0 / spec.interior_surface_coefficient,
+                        rse=1.0 / spec.exterior_surface_coefficient,
+                    )
+                )
+            except StudyError as exc:  # the first variant that fails says it (usually the base wall's layers)
+                raise StudyError(
+                    [f"{v.path} ({v.name!r}): {exc.problems[0]}"], source=str(study.path) if study.path else None
+                ) from None
+    else:
+        glasers = [None] * len(vwalls)
+    results = []
+    times = weather.data.index.tz_localize(None)
+    hour_index = times.append(pd.DatetimeIndex([times[-1] + pd.Timedelta(hours=1)]))
+    per_hour = int(round(3600 / yb.time_step))
+    for v, w, g in zip(spec.variants, vwalls, glasers, strict=True):
+        t = time.perf_counter()
+        point = periodic_year([w], yb, all_rows=True)
+        sample_losses = None
+        if smp is not None:  # every posterior draw with the variant's changes, in one batch on the point's grid
+            yr = periodic_year([w] + [apply_variant(sw, v) for sw in smp.walls], yb, all_rows=False)
+            sample_losses = yr.annual_loss_kWh_m2[1:]
+        u = iso6946.thermal_resistance(
+            w, rsi=1.0 / spec.interior_surface_coefficient, rse=1.0 / spec.exterior_surface_coefficient
+        ).u_value
+        sl = slice(None, None, per_hour)
+        hourly = pd.DataFrame(
+            {
+                "temp_air": yb.hourly["temp_air"],
+                "plane_irradiance_W_m2": yb.hourly["plane_irradiance"],
+                "temp_sky": yb.hourly["temp_sky"],
+                "sol_air_temperature": yb.hourly["sol_air_temperature"],
+                "exterior_surface_temperature": point.t_se[0, sl],
+                "interior_surface_temperature": point.t_si[0, sl],
+                "loss_W_m2": -point.q_i[0, sl],
+            },
+            index=pd.DatetimeIndex(hour_index, name="time"),
+        )
+        results.append(
+            VariantResult(
+                spec=v,
+                wall=w,
+                u_value=u,
+                annual_loss=float(point.annual_loss_kWh_m2[0]),
+                peak_loss=float(point.peak_loss_W_m2[0]),
+                min_surface_temperature=float(np.nanmin(point.t_si[0])),
+                passes=point.passes,
+                residual=point.residual,
+                hourly=hourly,
+                glaser=g,
+                sample_losses=sample_losses,
+            )
+        )
+        if progress:
+            print(f"  {v.name}: {time.perf_counter() - t:.1f} s", file=sys.stderr, flush=True)
+    res = RetrofitResult(
+        study=study,
+        spec=spec,
+        weather=weather,
+        wall_source=source,
+        variants=results,
+        samples=smp,
+        seconds=time.perf_counter() - t_start,
+        info={"engine_path": point.path, "nodes_first_variant": point.nodes},
+    )
+    if out is not None:
+        res.write(out)
+    return res
