@@ -38,11 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show the full traceback on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(mod)
-        except ImportError:  # pragma: no cover - a command whose module is missing
-            continue
-        module.register(sub)
+        importlib.import_module(mod).register(sub)
     return parser
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._format import table
+from ..formatting import table
 
 
 def register(sub) -> None:

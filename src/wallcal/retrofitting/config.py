@@ -15,8 +15,8 @@ from typing import Any
 
 from ..errors import StudyError, closest
 from ..schema import Problems, Table, describe
-from ..wallfile import LAYER_KEYS, WALL_KEYS, parse_wall, wall_to_dict
 from ..wall import Layer, Wall
+from ..wallfile import LAYER_KEYS, WALL_KEYS, parse_wall, wall_to_dict
 from . import materials
 
 RETROFIT_KEYS = (

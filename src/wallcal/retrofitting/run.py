@@ -111,7 +111,7 @@ def periodic_year(
 
     ``all_rows=False`` forms only the interior surface temperature and flux (what the batch needs).
     """
-    from ..engines.base import BoundaryInput, SimulationInput
+    from ..engines.base import BoundaryInput, EngineOptions, SimulationInput
     from ..engines.fd import FDEngine, PreparedFD
     from ..grid import PropertyArrays
 
@@ -129,7 +129,7 @@ def periodic_year(
         flux_faces=("exterior", "interior"),
         grid_constant=grid_constant,
         scheme="cn",
-        options={"grid_time_step": min(grid_time_step, dt)},
+        options=EngineOptions(grid_time_step=min(grid_time_step, dt)),
     )
     prep = FDEngine("cn").prepare(inp)
     m = min(int(round(WARMUP_DAYS * 86400 / dt)), n)
