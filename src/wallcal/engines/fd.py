@@ -8,14 +8,14 @@ numba kernel, in parallel over candidates.
 
 Scheme details
 --------------
-- theta = 1/2 (``cn``) or 1 (``implicit``) on every link, except links that
-  touch a node without heat capacity (no-mass layers at a face, two no-mass
-  layers in a row) and links so stiff that Crank-Nicolson would ring
-  (``g dt (1/c_a + 1/c_b) > stiff_limit``, default 10: thin, very conductive
-  layers such as a metal sheet, or a contact resistance calibrated towards 0).
-  Those links are fully implicit (L-stable), which damps their ringing while
-  the rest of the wall keeps second-order accuracy. On ordinary walls with
-  C >= 1 no link is switched; ``info["implicit_links"]`` says how many were.
+- theta = 1/2 (``cn``) or 1 (``implicit``) on every link, raised where the scheme would
+  otherwise break the discrete maximum principle (a step response would ring): with the node
+  stiffness ``s_i = dt sum g / c_i`` (Robin terms included, inf without capacity), a link gets
+  ``theta = max(theta0, 1 - 1 / max(s_a, s_b))`` (see :func:`wallcal.engines.kernels.link_thetas`
+  and docs/engine.md). Ordinary walls at C >= 1 have s <= 2 and keep Crank-Nicolson on every
+  link; thin, very conductive layers (metal sheets), light half-cells next to a contact
+  resistance and nodes without capacity get a raised theta; ``info["implicit_links"]`` says how
+  many terms. ``stiff_limit`` (option) replaces the limit 2 (``inf``: theta0 everywhere).
 - lambda(T): each link's conductance is the Kirchhoff mean of lambda over its two
   node temperatures, evaluated at the mid-step temperature extrapolated from the
   last two steps (``1.5 T^n - 0.5 T^{n-1}``); the matrix stays factorised at
@@ -66,7 +66,7 @@ from .base import Engine, EngineOutput, SimulationInput
 
 BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN, "heat_flux": kernels.FLUX}
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
-DEFAULT_STIFF_LIMIT = 10.0
+DEFAULT_STIFF_LIMIT = None  # 1 / (1 - theta): the discrete maximum principle (see kernels.link_thetas)
 
 
 @dataclass
@@ -106,7 +106,7 @@ class PreparedFD:
         self.inp = inp
         self.grid = grid
         self.wall = inp.wall
-        self.stiff_limit = float(stiff_limit)
+        self.stiff_limit = None if stiff_limit is None else float(stiff_limit)
         if inp.scheme not in SCHEME_THETA:
             raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
         self.theta = SCHEME_THETA[inp.scheme]
@@ -192,15 +192,9 @@ class PreparedFD:
 
     def _thetas(self, cap: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """theta per link and per boundary term, and the number of links made implicit."""
-        return kernels.link_thetas(
-            cap,
-            g,
-            self.theta,
-            self.dt,
-            self.stiff_limit,
-            self.bc_type[0] == kernels.DIRICHLET,
-            self.bc_type[1] == kernels.DIRICHLET,
-        )
+        limit = self.stiff_limit if self.stiff_limit is not None else 1.0 / max(1.0 - self.theta, 1e-300)
+        bc_h = np.broadcast_to(self.bc_h, (cap.shape[0], 2)).copy()
+        return kernels.link_thetas(cap, g, self.bc_type, bc_h, self.theta, self.dt, limit)
 
     # ------------------------------------------------------------------ running
     def probe_depth_matrix(self, walls: list[Wall] | None = None, n: int = 1) -> np.ndarray:

@@ -1067,34 +1067,66 @@ def run_serial(
 
 
 @njit(cache=True)
-def link_thetas(cap, g, theta0, dt, stiff_limit, known_e, known_i):
-    """theta per link and per boundary term, and the number of links made fully implicit.
+def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
+    """theta per link and per boundary term, and the number of terms whose theta was raised.
 
-    A link is fully implicit when it touches an unknown node without heat capacity, or when
-    ``g dt (1/c_a + 1/c_b) > stiff_limit`` (known face nodes count as infinite capacity); a
-    boundary term is fully implicit when its face node has no capacity. Only for theta0 < 1.
+    The discrete maximum principle: the step ``T^{n+1} = A^-1 (B T^n + inputs)`` is monotone (a step in
+    an input gives a monotone response bounded by the inputs) when ``B = Cap/dt - K_{1-theta}`` has no
+    negative entry, i.e. at every unknown node ``sum_l (1 - theta_l) g_l dt <= c_i`` (Robin terms
+    included). With the node stiffness ``s_i = dt sum_l g_l / c_i`` (inf for a node without capacity,
+    0 for a known face node), the link between nodes a and b gets
+
+        theta_l = max(theta0, 1 - (1 - theta0) L / max(s_a, s_b)),   L = stiff_limit,
+
+    and a Robin boundary term the same with its face node's stiffness. With the default
+    ``L = 1 / (1 - theta0)`` (2 for Crank-Nicolson) every node satisfies the condition exactly where it
+    would fail; links between nodes with ``s <= L`` keep theta0 (second order). ``L = inf`` keeps
+    theta0 everywhere except at nodes without capacity.
     """
     nc, n_nodes = cap.shape
     n_links = g.shape[1]
     theta = np.full((nc, n_links), theta0)
     bc_theta = np.full((nc, 2), theta0)
-    n_forced = np.zeros(nc, dtype=np.int64)
-    inv_c = np.empty(n_nodes)
+    n_raised = np.zeros(nc, dtype=np.int64)
+    s = np.empty(n_nodes)
+    budget = (1.0 - theta0) * stiff_limit
     for c in range(nc):
         for j in range(n_nodes):
-            inv_c[j] = 1.0 / cap[c, j] if cap[c, j] > 0.0 else np.inf
-        if known_e:
-            inv_c[0] = 0.0
-        if known_i:
-            inv_c[n_nodes - 1] = 0.0
-        if theta0 < 1.0:
-            for lnk in range(n_links):
-                pair = g[c, lnk] * dt * (inv_c[lnk] + inv_c[lnk + 1])
-                if not np.isfinite(pair) or pair > stiff_limit:
-                    theta[c, lnk] = 1.0
-                    n_forced[c] += 1
-        if not np.isfinite(inv_c[0]):
-            bc_theta[c, 0] = 1.0
-        if not np.isfinite(inv_c[n_nodes - 1]):
-            bc_theta[c, 1] = 1.0
-    return theta, bc_theta, n_forced
+            s[j] = 0.0
+        for lnk in range(n_links):
+            s[lnk] += g[c, lnk]
+            s[lnk + 1] += g[c, lnk]
+        if bc_type[0] == ROBIN:
+            s[0] += bc_h[c, 0]
+        if bc_type[1] == ROBIN:
+            s[n_nodes - 1] += bc_h[c, 1]
+        for j in range(n_nodes):
+            s[j] = s[j] * dt / cap[c, j] if cap[c, j] > 0.0 else np.inf
+        if bc_type[0] == DIRICHLET:
+            s[0] = 0.0
+        if bc_type[1] == DIRICHLET:
+            s[n_nodes - 1] = 0.0
+        if theta0 >= 1.0:
+            continue
+        for lnk in range(n_links):
+            th = _raised_theta(theta0, budget, max(s[lnk], s[lnk + 1]))
+            if th > theta0:
+                theta[c, lnk] = th
+                n_raised[c] += 1
+        for f in range(2):
+            if bc_type[f] == ROBIN:
+                th = _raised_theta(theta0, budget, s[0 if f == 0 else n_nodes - 1])
+                if th > theta0:
+                    bc_theta[c, f] = th
+                    n_raised[c] += 1
+    return theta, bc_theta, n_raised
+
+
+@njit(cache=True)
+def _raised_theta(theta0, budget, s):
+    """theta for a term whose stiffest node has stiffness s: (1 - theta) s <= budget."""
+    if not np.isfinite(s):
+        return 1.0
+    if s * (1.0 - theta0) <= budget:
+        return theta0
+    return 1.0 - budget / s
