@@ -142,6 +142,7 @@ class PreparedFD:
         # lambda(T): refactorise the tridiagonal matrix when a conductance drifts this much (0: every step)
         self.refactor_drift = float(inp.options.get("refactor_drift", 0.02))
         self._laws()
+        self._variant = 0  # A/B measurement of optimisations (bench/ab_engine.py); 0 = all on
 
     # ------------------------------------------------------------------ setup
     def _laws(self):
@@ -292,6 +293,7 @@ class PreparedFD:
             pw,
             tinit,
             self.refactor_drift,
+            self._variant,
         )
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
@@ -321,6 +323,7 @@ class PreparedFD:
             self._output_plan(),
             want,
             t0,
+            self._variant,
         )
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")

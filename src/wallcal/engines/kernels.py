@@ -308,6 +308,22 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, 
 
 
 @njit(cache=True)
+def _factor_folded(a, b, m, sc, f1, f2):
+    """LU of the tridiagonal (a diagonal, b off-diagonal) with the pivots folded: sc = 1/pivot scales the
+    right-hand side, f1_i = b_{i-1}/p_i (forward), f2_i = b_i/p_i (back substitution)."""
+    piv = a[0]
+    sc[0] = 1.0 / piv
+    f1[0] = 0.0
+    for i in range(1, m):
+        piv = a[i] - b[i - 1] * b[i - 1] / piv
+        sc[i] = 1.0 / piv
+        f1[i] = b[i - 1] * sc[i]
+    for i in range(m - 1):
+        f2[i] = b[i] * sc[i]
+    f2[m - 1] = 0.0
+
+
+@njit(cache=True)
 def _solve_coefficients(inv, f1, f2, k, m, sc, S):
     """Per-row coefficients of the step loop's twisted solve, from the factors of :func:`_factor_lean`:
     sc, the scale of right-hand side row i (1/pivot; 1/gamma at the twist row k), and, packed per
@@ -503,6 +519,7 @@ def _run_one(
     energy,
     Tinit,
     drift,
+    variant=0,
 ):
     """One candidate of :func:`run_batch`.
 
@@ -551,7 +568,9 @@ def _run_one(
     wb = np.zeros(mm)
     # the solve: parallel cyclic reduction in vector registers up to PCR_MAX_ROWS unknowns (pcr.py),
     # the twisted scalar solve beyond
-    use_pcr = 0 < m <= PCR_MAX_ROWS
+    use_pcr = 0 < m <= PCR_MAX_ROWS and (variant & 1) == 0
+    use_thomas = (variant & 2) != 0 and not use_pcr
+    allow_short = (variant & 4) == 0
     n_regs = (m + 7) // 8 if use_pcr else 1
     n_r = 8 * n_regs
     rhs = np.zeros(max(mm, n_r))  # zero-padded to whole registers
@@ -636,15 +655,17 @@ def _run_one(
         _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm)
         _drift_limits(cap, theta, dt, bc_type, lim)
         _set_factorised(g0, gs, theta, drift, lim, thg, tol)
-        short = _short_ok(coef, Tmid, has_table)
+        short = allow_short and _short_ok(coef, Tmid, has_table)
     # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
     gex = np.empty(n_links)
     for lnk in range(n_links):
         gex[lnk] = omth[lnk] * g0[lnk]
     if m > 0:
-        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not use_pcr)
+        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not (use_pcr or use_thomas))
         if use_pcr:
             n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
+        elif use_thomas:
+            _factor_folded(wa, wb, m, sc, f1, f2)
         else:
             _solve_coefficients(inv, f1, f2, k, m, sc, S)
 
@@ -717,7 +738,7 @@ def _run_one(
                         n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
                     fresh = True
-                    short = n_big == 0 and _short_ok(coef, Tmid, has_table)
+                    short = allow_short and n_big == 0 and _short_ok(coef, Tmid, has_table)
                     _exact_factors(coef, tref, g_ref, Tmid, Gm)
                     _nonlinear_conductances(
                         gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm
@@ -733,9 +754,13 @@ def _run_one(
                         gs[lnk] = Gm[lnk] * _sinhc(0.25 * d * d)
                 if n_drift > 0 and m > 0:
                     _set_factorised(g0, gs, theta, drift, lim, thg, tol)
-                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not use_pcr)
+                    _factor_lean(
+                        cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not (use_pcr or use_thomas)
+                    )
                     if use_pcr:
                         n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
+                    elif use_thomas:
+                        _factor_folded(wa, wb, m, sc, f1, f2)
                     else:
                         _solve_coefficients(inv, f1, f2, k, m, sc, S)
             if fresh:
@@ -769,6 +794,18 @@ def _run_one(
                 pcr_solve(n_regs, rhs, r_al, r_ga, r_w, Tu, n_lev)
                 if dir_i:
                     Tnew[n_nodes - 1] = ui[n + 1]
+            elif use_thomas:
+                # plain LU with the pivots folded into the right-hand side (rhs already scaled by sc = 1/pivot):
+                # one multiply-add per row and sweep on the dependency chain
+                y = rhs[0]
+                Tu[0] = y
+                for i in range(1, m):
+                    y = rhs[i] - f1[i] * y
+                    Tu[i] = y
+                x = Tu[m - 1]
+                for i in range(m - 2, -1, -1):
+                    x = Tu[i] - f2[i] * x
+                    Tu[i] = x
             else:
                 # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
                 # chains (top and bottom half), interleaved, the running values in registers, each taking
@@ -938,6 +975,7 @@ def run_batch(
     pw,
     Tinit,
     drift=0.02,
+    variant=0,
 ):
     """Run every candidate wall of a batch.
 
@@ -997,6 +1035,7 @@ def run_batch(
             energy[c],
             Tinit[c],
             drift,
+            variant,
         )
     return out, energy, Tend
 
@@ -1027,6 +1066,7 @@ def run_serial(
     pw,
     Tinit,
     drift=0.02,
+    variant=0,
 ):
     """:func:`run_batch` on the calling thread (small batches: no thread wake-up latency)."""
     nc = cap.shape[0]
@@ -1062,6 +1102,7 @@ def run_serial(
             energy[c],
             Tinit[c],
             drift,
+            variant,
         )
     return out, energy, Tend
 

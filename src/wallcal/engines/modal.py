@@ -541,7 +541,7 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
 
 
 @njit(cache=True, fastmath=True)
-def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, out, t0, tend):
+def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, out, t0, tend, variant=0):
     """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,).
 
     ``want`` (n_q,) bool: the output rows to form (others are left NaN); fewer rows need fewer
@@ -686,7 +686,7 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
         nxt = base[k2] if k2 < n_out else n_steps
         if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
             w0 = ow[last, 0]
-            if n_rq <= 3:
+            if n_rq <= 3 and (variant & 1) == 0:
                 d3 = _dots3_step5(y, mu, al, s, b, gf)
                 for i in range(n_rq):
                     out[fq[i], last] = w0 * d3[i]
@@ -715,7 +715,7 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
 
 
 @njit(parallel=True, cache=True)
-def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
+def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0, variant=0):
     """Run every candidate through its modal recursion (see module docstring).
 
     Parameters (c = candidate, j = node, l = link, p = probe, k = output time)
@@ -736,19 +736,19 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want
     tend = np.empty(cap.shape)
     for c in prange(nc):
         _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
+            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c], variant
         )
     return out, tend
 
 
 @njit(cache=True)
-def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
+def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0, variant=0):
     """:func:`modal_batch` on the calling thread (small batches: no thread wake-up latency)."""
     nc = cap.shape[0]
     out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
     tend = np.empty(cap.shape)
     for c in range(nc):
         _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
+            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c], variant
         )
     return out, tend
