@@ -121,6 +121,7 @@ def build_grid(
     grid_constant: float,
     rule: str = "wallcal",
     contact_layers: set[int] | frozenset[int] = frozenset(),
+    intervals: list[int] | None = None,
 ) -> Grid:
     """Build the node layout of ``wall``.
 
@@ -135,6 +136,9 @@ def build_grid(
     contact_layers : set of int
         Layer indices that get a contact link even when their contact resistance is 0
         (because a calibration may change it).
+    intervals : list of int, optional
+        Intervals per layer instead of the node rule's (massive layers only; e.g. a fine grid for a
+        time constant).
     """
     xs = [0.0]
     link_layer: list[int] = []
@@ -154,7 +158,10 @@ def build_grid(
             link_n.append(0.0)
             npl.append(0)
         else:
-            n = intervals_for_layer(layer.thickness, layer.diffusivity, time_step, grid_constant, rule)
+            if intervals is not None:
+                n = max(1, int(intervals[i]))
+            else:
+                n = intervals_for_layer(layer.thickness, layer.diffusivity, time_step, grid_constant, rule)
             dx = layer.thickness / n
             for k in range(1, n + 1):
                 xs.append(depth + k * dx if k < n else depth + layer.thickness)

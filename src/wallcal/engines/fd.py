@@ -11,7 +11,7 @@ Scheme details
 - theta = 1/2 (``cn``) or 1 (``implicit``) on every link, raised where the scheme would
   otherwise break the discrete maximum principle (a step response would ring): with the node
   stiffness ``s_i = dt sum g / c_i`` (Robin terms included, inf without capacity), a link gets
-  ``theta = max(theta0, 1 - 1 / max(s_a, s_b))`` (see :func:`wallcal.engines.kernels.link_thetas`
+  ``theta = max(theta0, 1 - 1 / max(s_a, s_b))`` (see :func:`wallcal.engines.operator.link_thetas`
   and docs/engine.md). Ordinary walls at C >= 1 have s <= 2 and keep Crank-Nicolson on every
   link; thin, very conductive layers (metal sheets), light half-cells next to a contact
   resistance and nodes without capacity get a raised theta; ``info["implicit_links"]`` says how
@@ -61,12 +61,11 @@ from ..grid import (
     probe_weights,
 )
 from ..wall import Wall
-from . import kernels, modal
+from . import boundary, kernels, modal, operator
 from .base import Engine, EngineOutput, SimulationInput
 
-BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN, "heat_flux": kernels.FLUX}
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
-DEFAULT_STIFF_LIMIT = None  # 1 / (1 - theta): the discrete maximum principle (see kernels.link_thetas)
+DEFAULT_STIFF_LIMIT = None  # 1 / (1 - theta): the discrete maximum principle (see operator.link_thetas)
 
 
 @dataclass
@@ -111,18 +110,16 @@ class PreparedFD:
             raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
         self.theta = SCHEME_THETA[inp.scheme]
         self.dt = float(inp.time_step)
-        self.bc_type = np.array([BC_CODES[inp.exterior.type], BC_CODES[inp.interior.type]], dtype=np.int64)
-        if (self.bc_type == kernels.FLUX).all():
+        (code_e, h_e), (code_i, h_i) = (
+            boundary.face_parameters(face.type, face.surface_coefficient) for face in (inp.exterior, inp.interior)
+        )
+        self.bc_type = np.array([code_e, code_i], dtype=np.int64)
+        self.bc_h = np.array([h_e, h_i])
+        if boundary.imposes_flux(code_e) and boundary.imposes_flux(code_i):
             raise EngineError(
                 "heat-flux boundaries on both faces leave the wall's temperature level undetermined: "
                 "impose a temperature on at least one face"
             )
-        self.bc_h = np.array(
-            [
-                inp.exterior.surface_coefficient or 0.0 if inp.exterior.type == "air_temperature" else 0.0,
-                inp.interior.surface_coefficient or 0.0 if inp.interior.type == "air_temperature" else 0.0,
-            ]
-        )
         self.ue = np.ascontiguousarray(inp.exterior.values, dtype=float)
         self.ui = np.ascontiguousarray(inp.interior.values, dtype=float)
         pos = np.asarray(inp.output_positions, dtype=float)
@@ -142,7 +139,6 @@ class PreparedFD:
         # lambda(T): refactorise the tridiagonal matrix when a conductance drifts this much (0: every step)
         self.refactor_drift = float(inp.options.get("refactor_drift", 0.02))
         self._laws()
-        self._variant = 0  # A/B measurement of optimisations (bench/ab_engine.py); 0 = all on
 
     # ------------------------------------------------------------------ setup
     def _laws(self):
@@ -195,7 +191,7 @@ class PreparedFD:
         """theta per link and per boundary term, and the number of links made implicit."""
         limit = self.stiff_limit if self.stiff_limit is not None else 1.0 / max(1.0 - self.theta, 1e-300)
         bc_h = np.broadcast_to(self.bc_h, (cap.shape[0], 2)).copy()
-        return kernels.link_thetas(cap, g, self.bc_type, bc_h, self.theta, self.dt, limit)
+        return operator.link_thetas(cap, g, self.bc_type, bc_h, self.theta, self.dt, limit)
 
     # ------------------------------------------------------------------ running
     def probe_depth_matrix(self, walls: list[Wall] | None = None, n: int = 1) -> np.ndarray:
@@ -207,10 +203,8 @@ class PreparedFD:
     @property
     def unknown_range(self) -> tuple[int, int]:
         """(first, count) of the unknown nodes (faces with an imposed temperature are known)."""
-        n = self.grid.n_nodes
-        j0 = 1 if self.bc_type[0] == kernels.DIRICHLET else 0
-        j1 = n - 2 if self.bc_type[1] == kernels.DIRICHLET else n - 1
-        return j0, j1 - j0 + 1
+        j0, m = operator.unknown_range(self.grid.n_nodes, self.bc_type)
+        return int(j0), int(m)
 
     def fast_path_possible(self, cap: np.ndarray, n_forced: np.ndarray) -> bool:
         """The modal fast path applies: constant properties, every unknown node stores heat, one theta."""
@@ -261,40 +255,14 @@ class PreparedFD:
             return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced, rows)
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        kind = np.broadcast_to(self.kind, g.shape).copy()
-        tref = np.broadcast_to(self.tref, g.shape).copy()
-        ts = np.broadcast_to(self.tab_start, g.shape).copy()
-        tl = np.broadcast_to(self.tab_len, g.shape).copy()
         bc_h = np.broadcast_to(self.bc_h, (nc, 2)).copy()
+        wall = (cap, g, theta)
+        laws = (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v)
+        faces = (self.bc_type, bc_h, bc_theta, self.ue, self.ui)
+        outputs = (self.out_step, self.out_w, pa, pb, pw)
         # one candidate: run on the calling thread (waking numba's worker threads costs more than it saves)
         run = kernels.run_serial if nc == 1 else kernels.run_batch
-        out, energy, tend = run(
-            cap,
-            g,
-            theta,
-            kind,
-            coef,
-            tref,
-            ts,
-            tl,
-            self.tab_T,
-            self.tab_v,
-            self.nonlinear,
-            self.bc_type,
-            bc_h,
-            bc_theta,
-            self.ue,
-            self.ui,
-            self.dt,
-            self.out_step,
-            self.out_w,
-            pa,
-            pb,
-            pw,
-            tinit,
-            self.refactor_drift,
-            self._variant,
-        )
+        out, energy, tend = run(wall, laws, faces, outputs, self.dt, self.refactor_drift, tinit)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
     # ------------------------------------------------------------------ fast path
@@ -323,7 +291,6 @@ class PreparedFD:
             self._output_plan(),
             want,
             t0,
-            self._variant,
         )
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")

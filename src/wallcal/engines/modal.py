@@ -50,7 +50,7 @@ Per candidate (everything inside the numba batch loop, in parallel over candidat
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
    over the steps: between two anchors five steps apart (5-minute data at
    1-minute steps), one loop over the modes forms the anchor's output rows and
-   steps five times (:func:`_dots_step5`, :func:`_dots3_step5`); otherwise the rows are formed
+   steps five times (:func:`_dots_step5`); otherwise the rows are formed
    (:func:`_form`) and the state is stepped four steps per pass (:func:`_advance`).
    Memory does not depend on the number of steps.
 """
@@ -61,6 +61,8 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
+
+from . import boundary, operator
 
 #: columns of the per-output input features (see :func:`output_plan`)
 N_FEAT = 6
@@ -322,18 +324,7 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     n_nodes = cap.shape[0]
     n_links = g.shape[0]
     npr = pa.shape[0]
-    for i in range(m):
-        kd[i] = 0.0
-        ko[i] = 0.0
-    for lnk in range(n_links):
-        ia = lnk - j0
-        ib = ia + 1
-        if 0 <= ia < m:
-            kd[ia] += g[lnk]
-        if 0 <= ib < m:
-            kd[ib] += g[lnk]
-        if 0 <= ia and ib < m:
-            ko[ia] = -g[lnk]
+    pe, pi = operator.assemble_operator(g, np.ones(n_links), bc_type, bc_h, np.ones(2), j0, m, kd, ko)
     G_nodes[:, :] = 0.0
     D[:, :] = 0.0
     # probes: node a with 1 - w, node b with w; a known face node enters through its input
@@ -346,36 +337,19 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
                 D[q, 0] += wgt
             else:
                 D[q, 1] += wgt
-    qe = npr
-    qi = npr + 1
-    # exterior face: q_e = g_01 (T_0 - T_1) + c_0 dT_0/dt, h (T_air - T_s), or the imposed flux
-    if bc_type[0] == 0:
-        pe = g[0]
-        D[qe, 2] = g[0]
-        G_nodes[qe, 0] = -g[0]
-        D[qe, 4] = cap[0]
-    elif bc_type[0] == 1:
-        kd[0] += bc_h[0]
-        pe = bc_h[0]
-        D[qe, 2] = bc_h[0]
-        G_nodes[qe, 0] = -bc_h[0]
-    else:
-        pe = 1.0
-        D[qe, 0] = 1.0
-    # interior face (positive towards the interior)
-    if bc_type[1] == 0:
-        pi = g[n_links - 1]
-        G_nodes[qi, m - 1] = g[n_links - 1]
-        D[qi, 3] = -g[n_links - 1]
-        D[qi, 5] = -cap[n_nodes - 1]
-    elif bc_type[1] == 1:
-        kd[m - 1] += bc_h[1]
-        pi = bc_h[1]
-        G_nodes[qi, m - 1] = bc_h[1]
-        D[qi, 3] = -bc_h[1]
-    else:
-        pi = -1.0
-        D[qi, 1] = 1.0
+    # face fluxes (positive towards the interior): a T_face + b u + c du/dt + d u_interp (boundary.flux_row);
+    # feature columns of u_e: 0 interpolated, 2 two-step average, 4 rate; of u_i: 1, 3, 5
+    for f in range(2):
+        q = npr + f
+        side = 1.0 if f == 0 else -1.0
+        i = 0 if f == 0 else m - 1
+        a, b, c, d = boundary.flux_row(
+            bc_type[f], bc_h[f], g[0 if f == 0 else n_links - 1], cap[0 if f == 0 else n_nodes - 1], side
+        )
+        G_nodes[q, i] += a
+        D[q, 2 + f] = b
+        D[q, 4 + f] = c
+        D[q, f] = d
     return pe, pi
 
 
@@ -467,34 +441,6 @@ def _dots_step5(y, mu, al, s, n, gf):
 
 
 @njit(cache=True, fastmath=True, inline="always")
-def _dots3_step5(y, mu, al, s, n, gf):
-    """:func:`_dots_step5` for at most three requested rows (a calibration's usual targets).
-
-    A deliberate copy with three accumulators: the row count must be fixed at compile time for the
-    loop to vectorise with its accumulators in registers, and two rows fewer make the kernel of a
-    three-target calibration ~10 % faster (interleaved A/B of the two kernels, bundled example)."""
-    m = y.shape[0]
-    a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
-    b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
-    d0 = 0.0
-    d1 = 0.0
-    d2 = 0.0
-    for k in range(m):
-        zk = y[k]
-        d0 += gf[0, k] * zk
-        d1 += gf[1, k] * zk
-        d2 += gf[2, k] * zk
-        u = mu[k]
-        f = al[k]
-        zk = u * zk + (f * a0 + b0)
-        zk = u * zk + (f * a1 + b1)
-        zk = u * zk + (f * a2 + b2)
-        zk = u * zk + (f * a3 + b3)
-        y[k] = u * zk + (f * a4 + b4)
-    return d0, d1, d2
-
-
-@njit(cache=True, fastmath=True, inline="always")
 def _form(k_out, y, Gs, rq, opat, ow, out):
     """The state part of output k_out from the state at its anchor: a dot product per requested
     row and pattern (the input terms are added by :func:`_input_terms`)."""
@@ -541,7 +487,7 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
 
 
 @njit(cache=True, fastmath=True)
-def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, out, t0, tend, variant=0):
+def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, out, t0, tend):
     """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,).
 
     ``want`` (n_q,) bool: the output rows to form (others are left NaN); fewer rows need fewer
@@ -549,8 +495,7 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
     """
     base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
     n_nodes = cap.shape[0]
-    j0 = 1 if bc_type[0] == 0 else 0
-    m = (n_nodes - 1 if bc_type[1] == 0 else n_nodes) - j0
+    j0, m = operator.unknown_range(n_nodes, bc_type)
     npr = pa.shape[0]
     n_q = npr + 2
     n_steps = ue.shape[0] - 1
@@ -686,14 +631,9 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
         nxt = base[k2] if k2 < n_out else n_steps
         if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
             w0 = ow[last, 0]
-            if n_rq <= 3 and (variant & 1) == 0:
-                d3 = _dots3_step5(y, mu, al, s, b, gf)
-                for i in range(n_rq):
-                    out[fq[i], last] = w0 * d3[i]
-            else:
-                d5 = _dots_step5(y, mu, al, s, b, gf)
-                for i in range(n_rq):
-                    out[fq[i], last] = w0 * d5[i]
+            d5 = _dots_step5(y, mu, al, s, b, gf)
+            for i in range(n_rq):
+                out[fq[i], last] = w0 * d5[i]
             cur = b + 5
         else:
             _form(last, y, Gs, rq, opat, ow, out)
@@ -710,12 +650,12 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
         tend[j0 + i] = dinv[i] * z[i]
     if j0 == 1:
         tend[0] = ue[n_steps]
-    if bc_type[1] == 0:
+    if boundary.is_known(bc_type[1]):
         tend[n_nodes - 1] = ui[n_steps]
 
 
 @njit(parallel=True, cache=True)
-def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0, variant=0):
+def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
     """Run every candidate through its modal recursion (see module docstring).
 
     Parameters (c = candidate, j = node, l = link, p = probe, k = output time)
@@ -736,19 +676,19 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want
     tend = np.empty(cap.shape)
     for c in prange(nc):
         _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c], variant
+            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
         )
     return out, tend
 
 
 @njit(cache=True)
-def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0, variant=0):
+def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
     """:func:`modal_batch` on the calling thread (small batches: no thread wake-up latency)."""
     nc = cap.shape[0]
     out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
     tend = np.empty(cap.shape)
     for c in range(nc):
         _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c], variant
+            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
         )
     return out, tend
