@@ -319,8 +319,12 @@ def _probe_weights_kernel(x, depths, side):
     for c in range(nc):
         for p in range(npr):
             d = min(max(depths[c, p], 0.0), x[n - 1])
-            first = np.searchsorted(x, d - tol, side="left")  # first node at or after d
-            last = np.searchsorted(x, d + tol, side="right") - 1  # last node at or before d
+            first = 0  # first node at or after d
+            while first < n and x[first] < d - tol:
+                first += 1
+            last = n - 1  # last node at or before d
+            while last >= 0 and x[last] > d + tol:
+                last -= 1
             if first <= last:  # on a node (two nodes at a contact resistance)
                 if last > first and side[p] == 1:
                     a[c, p] = last

@@ -45,8 +45,10 @@ Scheme details
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..errors import EngineError
@@ -96,6 +98,25 @@ class BatchResult:
     def energy_residual(self) -> np.ndarray:
         """Stored-energy change minus net energy in [J/m2] (0 up to round-off)."""
         return self.energy[:, 0] - (self.energy[:, 1] - self.energy[:, 2])
+
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def in_threads(part, n: int):
+    """Run ``part(slice)`` over ``n`` candidates split into contiguous chunks, one per thread (the
+    kernels release the GIL), and concatenate the results along the first axis. Threads: numba's
+    ``NUMBA_NUM_THREADS`` (the number of cores unless set). One candidate runs on the calling thread.
+    """
+    global _POOL
+    n_threads = min(n, max(1, int(numba.config.NUMBA_NUM_THREADS)))
+    if n_threads <= 1:
+        return part(slice(0, n))
+    if _POOL is None or _POOL._max_workers < n_threads:
+        _POOL = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="wallcal-fd")
+    bounds = np.linspace(0, n, n_threads + 1).round().astype(int)
+    parts = list(_POOL.map(lambda i: part(slice(bounds[i], bounds[i + 1])), range(n_threads)))
+    return tuple(np.concatenate(chunks, axis=0) for chunks in zip(*parts, strict=True))
 
 
 class PreparedFD:
@@ -260,9 +281,19 @@ class PreparedFD:
         laws = (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v)
         faces = (self.bc_type, bc_h, bc_theta, self.ue, self.ui)
         outputs = (self.out_step, self.out_w, pa, pb, pw)
-        # one candidate: run on the calling thread (waking numba's worker threads costs more than it saves)
-        run = kernels.run_serial if nc == 1 else kernels.run_batch
-        out, energy, tend = run(wall, laws, faces, outputs, self.dt, self.refactor_drift, tinit)
+
+        def part(sl):
+            return kernels.run_batch(
+                tuple(a[sl] for a in wall),
+                laws[:1] + (coef[sl],) + laws[2:],
+                faces[:1] + (bc_h[sl], bc_theta[sl]) + faces[3:],
+                outputs[:2] + tuple(a[sl] for a in outputs[2:]),
+                self.dt,
+                self.refactor_drift,
+                tinit[sl],
+            )
+
+        out, energy, tend = in_threads(part, nc)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
     # ------------------------------------------------------------------ fast path
@@ -275,23 +306,15 @@ class PreparedFD:
         nc, n_nodes = cap.shape
         want = np.ones(pa.shape[1] + 2, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        run = modal.modal_serial if nc == 1 else modal.modal_batch
-        out, tend = run(
-            cap,
-            g,
-            pa,
-            pb,
-            pw,
-            self.bc_type,
-            self.bc_h,
-            self.theta,
-            self.dt,
-            self.ue,
-            self.ui,
-            self._output_plan(),
-            want,
-            t0,
-        )
+        plan = self._output_plan()
+
+        def part(sl):
+            return modal.modal_batch(
+                cap[sl], g[sl], pa[sl], pb[sl], pw[sl], self.bc_type, self.bc_h, self.theta, self.dt, self.ue,
+                self.ui, plan, want, t0[sl],
+            )  # fmt: skip
+
+        out, tend = in_threads(part, nc)
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         energy = np.full((nc, 3), np.nan)

@@ -37,7 +37,7 @@ temperature).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange, uint64
+from numba import njit, uint64
 
 from ..grid import LAMBDA_CONSTANT, LAMBDA_EXPONENTIAL, LAMBDA_TABLE
 from . import boundary, operator
@@ -728,9 +728,10 @@ def _allocate(wall, outputs):
     return out, np.zeros((nc, 3)), np.zeros(cap.shape)
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, nogil=True)
 def run_batch(wall, laws, faces, outputs, dt, drift, Tinit):
-    """Run every candidate wall of a batch, in parallel over candidates.
+    """Run every candidate wall of a batch. Releases the GIL: a caller runs parts of a batch in threads
+    (:func:`wallcal.engines.fd.in_threads`).
 
     Parameters (c = candidate, j = node, l = link, k = output time, p = probe)
     ----------
@@ -752,16 +753,6 @@ def run_batch(wall, laws, faces, outputs, dt, drift, Tinit):
     energy : (c, 3) stored-energy change, energy in at the exterior, energy out at the interior [J/m2]
     Tend : (c, j) final node temperatures [degC]
     """
-    out, energy, Tend = _allocate(wall, outputs)
-    for c in prange(out.shape[0]):
-        w, lw, fc, op = _candidate(c, wall, laws, faces, outputs)
-        Tend[c] = _run_one(w, lw, fc, op, dt, drift, Tinit[c], out[c], energy[c])
-    return out, energy, Tend
-
-
-@njit(cache=True)
-def run_serial(wall, laws, faces, outputs, dt, drift, Tinit):
-    """:func:`run_batch` on the calling thread (one candidate: no thread wake-up latency)."""
     out, energy, Tend = _allocate(wall, outputs)
     for c in range(out.shape[0]):
         w, lw, fc, op = _candidate(c, wall, laws, faces, outputs)

@@ -60,7 +60,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from . import boundary, operator
 
@@ -117,8 +117,10 @@ def tridiag_ql(d, e, zt, rot_i, rot_cs):
                 n_new = 2 * rot_i.shape[0] + m
                 ri = np.empty(n_new, dtype=np.int64)
                 rc = np.empty((n_new, 2))
-                ri[:nrot] = rot_i[:nrot]
-                rc[:nrot] = rot_cs[:nrot]
+                for t in range(nrot):  # (loops: a slice copy compiles numba's shape-error formatting)
+                    ri[t] = rot_i[t]
+                    rc[t, 0] = rot_cs[t, 0]
+                    rc[t, 1] = rot_cs[t, 1]
                 rot_i = ri
                 rot_cs = rc
             while i >= lo:
@@ -383,7 +385,7 @@ def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
                 H[p, q, 2 * i + 1] = h1
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True)
 def _advance(y, mu, al, s, n_from, n_to):
     """Advance the scaled modal state ``y = z / r1`` from grid time n_from to n_to (in place):
     ``y <- mu y + (alpha s0 + s1)``, two multiply-adds per mode and step, four steps per pass over
@@ -409,7 +411,7 @@ def _advance(y, mu, al, s, n_from, n_to):
         n += 1
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True)
 def _dots_step5(y, mu, al, s, n, gf):
     """The dot products of the scaled state at grid time n with the five rows of ``gf`` (padded with
     zero rows), and five steps on (to n + 5), in one pass over the modes. (The rows are one 2-D
@@ -440,7 +442,7 @@ def _dots_step5(y, mu, al, s, n, gf):
     return d0, d1, d2, d3, d4
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True)
 def _form(k_out, y, Gs, rq, opat, ow, out):
     """The state part of output k_out from the state at its anchor: a dot product per requested
     row and pattern (the input terms are added by :func:`_input_terms`)."""
@@ -486,7 +488,7 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
             oq[k] += xw[j] * acc
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, out, t0, tend):
     """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,).
 
@@ -613,10 +615,11 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
     pm0 = pmain[0]
     gf = np.empty((N_FUSED, m))  # one array: LLVM checks its rows against the state as one object
     for i in range(N_FUSED):
-        gf[i] = Gs[pm0, fq[i]]
+        for k in range(m):
+            gf[i, k] = Gs[pm0, fq[i], k]
     # one pass over the steps, stopping at each anchor
     n_out = base.shape[0]
-    cur = 0
+    cur = np.int64(0)
     k_out = 0
     while k_out < n_out:
         b = base[k_out]
@@ -654,9 +657,10 @@ def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want,
         tend[n_nodes - 1] = ui[n_steps]
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, nogil=True)
 def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
-    """Run every candidate through its modal recursion (see module docstring).
+    """Run every candidate through its modal recursion (see module docstring). Releases the GIL: a
+    caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`).
 
     Parameters (c = candidate, j = node, l = link, p = probe, k = output time)
     ----------
@@ -671,19 +675,6 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want
 
     Returns out (c, p + 2, k) and the final node temperatures (c, j) (known face nodes included).
     """
-    nc = cap.shape[0]
-    out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
-    tend = np.empty(cap.shape)
-    for c in prange(nc):
-        _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
-        )
-    return out, tend
-
-
-@njit(cache=True)
-def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
-    """:func:`modal_batch` on the calling thread (small batches: no thread wake-up latency)."""
     nc = cap.shape[0]
     out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
     tend = np.empty(cap.shape)
