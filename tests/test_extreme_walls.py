@@ -193,3 +193,28 @@ def test_implicit_scheme_is_close_too(dt):
     """fd-implicit on the hardest class (five decades): first order in time, so a looser bound (2x CN's)."""
     t_err, qe_err, qi_err, _ = _periodic(WALLS["five_decades"], dt, scheme="implicit")
     assert t_err < 2 * (0.01 + 1e-4 * dt), t_err
+
+
+@pytest.mark.parametrize("dt", DTS)
+@pytest.mark.parametrize("name", sorted(WALLS))
+@pytest.mark.parametrize("faces", ["surface_temperature", "air_temperature"])
+def test_default_thetas_keep_the_discrete_maximum_principle(name, dt, faces):
+    """B = Cap/dt - K_{1-theta} has no negative entry with the default thetas (the monotonicity condition
+    of docs/engine.md), for every class and step, with known faces and with air faces (h = 25 and 7.7)."""
+    from wallcal.engines import boundary
+    from wallcal.engines.operator import assemble_operator, link_thetas, unknown_range
+    from wallcal.grid import assemble, build_grid
+
+    wall = WALLS[name]
+    grid = build_grid(wall, dt, 2.0)
+    cap, g = assemble(grid, PropertyArrays.from_walls([wall]))
+    code = boundary.CODES[faces]
+    bc = np.array([code, code], dtype=np.int64)
+    h = np.array([[25.0, 7.7]]) if faces == "air_temperature" else np.zeros((1, 2))
+    theta, bc_theta, _ = link_thetas(cap, g, bc, h, 0.5, dt, 2.0)
+    j0, m = unknown_range(grid.n_nodes, bc)
+    diag, off = np.zeros(m), np.zeros(m)
+    assemble_operator(g[0], 1.0 - theta[0], bc, h[0], 1.0 - bc_theta[0], j0, m, diag, off)
+    b_diag = cap[0, j0 : j0 + m] / dt - diag  # off-diagonal entries of B are (1 - theta) g >= 0
+    assert (b_diag >= -1e-9 * cap[0, j0 : j0 + m] / dt).all(), b_diag.min()
+    assert (off <= 0).all()
