@@ -488,177 +488,8 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
             oq[k] += xw[j] * acc
 
 
-@njit(cache=True)
-def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, out, t0, tend):
-    """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,).
-
-    ``want`` (n_q,) bool: the output rows to form (others are left NaN); fewer rows need fewer
-    eigenvector components and less work per output time.
-    """
-    base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
-    n_nodes = cap.shape[0]
-    j0, m = operator.unknown_range(n_nodes, bc_type)
-    npr = pa.shape[0]
-    n_q = npr + 2
-    n_steps = ue.shape[0] - 1
-    kd = np.empty(m)
-    ko = np.empty(m)
-    G_nodes = np.empty((n_q, m))
-    D = np.empty((n_q, N_FEAT))
-    pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
-    n_rq = 0
-    for q in range(n_q):
-        if want[q]:
-            n_rq += 1
-        else:
-            for i in range(m):
-                G_nodes[q, i] = 0.0
-    rq = np.empty(n_rq, dtype=np.int64)
-    fq = np.full(N_FUSED, n_q, dtype=np.int64)  # fused rows, padded with the zero row n_q
-    n_rq = 0
-    for q in range(n_q):
-        if want[q]:
-            rq[n_rq] = q
-            if n_rq < N_FUSED:
-                fq[n_rq] = q
-            n_rq += 1
-        else:
-            out[q, :] = np.nan
-    # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
-    dinv = np.empty(m)
-    for i in range(m):
-        dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
-    lam = np.empty(m)
-    ee = np.zeros(m)
-    for i in range(m):
-        lam[i] = kd[i] * dinv[i] * dinv[i]
-    for i in range(m - 1):
-        ee[i] = ko[i] * dinv[i] * dinv[i + 1]
-    # unknowns whose eigenvector components are needed: both ends and the probes' nodes
-    col = np.full(m, -1, dtype=np.int64)
-    col[0] = 0
-    r = 1
-    for i in range(1, m):
-        need = i == m - 1
-        for q in range(n_q):
-            if G_nodes[q, i] != 0.0:
-                need = True
-        if need:
-            col[i] = r
-            r += 1
-    zt = np.zeros((m, r))
-    for i in range(m):
-        if col[i] >= 0:
-            zt[i, col[i]] = 1.0
-    rot_i = np.empty(2 * m * m, dtype=np.int64)
-    rot_cs = np.empty((2 * m * m, 2))
-    nrot, rot_i, rot_cs = tridiag_ql(lam, ee, zt, rot_i, rot_cs)
-    if nrot < 0:
-        out[:, :] = np.nan
-        tend[:] = np.nan
-        return
-    # modal coefficients; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
-    mu = np.empty(m)
-    r0 = np.empty(m)
-    r1 = np.empty(m)
-    z = np.empty(m)  # modal state
-    ce = col[0]
-    ci = col[m - 1]
-    for k in range(m):
-        den = 1.0 / dt + theta * lam[k]
-        mu[k] = (1.0 / dt - (1.0 - theta) * lam[k]) / den
-        a0 = dinv[0] * zt[k, ce] * pe
-        a1 = dinv[m - 1] * zt[k, ci] * pi
-        r0[k] = a0 / den
-        r1[k] = a1 / den
-        # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
-        z[k] = (a0 * ue[0] + a1 * ui[0]) / lam[k]
-    if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T)
-        for i in range(m):
-            z[i] = t0[j0 + i] / dinv[i]
-        apply_wt(nrot, rot_i, rot_cs, z)
-    # output rows in modal coordinates: G = G_nodes V
-    G = np.zeros((n_q, m))
-    for q in range(n_q):
-        for i in range(m):
-            h = G_nodes[q, i]
-            if h != 0.0:
-                h *= dinv[i]
-                c = col[i]
-                for k in range(m):
-                    G[q, k] += h * zt[k, c]
-    # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
-    # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
-    # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
-    rmax = 0.0
-    for k in range(m):
-        rmax = max(rmax, abs(r0[k]), abs(r1[k]))
-    tiny = 1e-150 * rmax if rmax > 0.0 else 1e-150
-    rho = np.empty(m)
-    al = np.empty(m)
-    y = np.empty(m)
-    for k in range(m):
-        rk = r1[k]
-        if abs(rk) < tiny:
-            rk = tiny
-        rho[k] = rk
-        al[k] = r0[k] / rk
-        y[k] = z[k] / rk
-    # per output pattern: Gs = G P(mu) rho over the scaled state and H (row n_q stays zero: the
-    # padding of the fused rows)
-    n_pat = wp.shape[0]
-    Gs = np.zeros((n_pat, n_q + 1, m))
-    H = np.zeros((n_pat, n_q + 1, 6))
-    _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H)
-    # the fused rows of the main pattern, extracted once (a view per output would cost reference
-    # counting in the loop; other patterns go through _form)
-    pm0 = pmain[0]
-    gf = np.empty((N_FUSED, m))  # one array: LLVM checks its rows against the state as one object
-    for i in range(N_FUSED):
-        for k in range(m):
-            gf[i, k] = Gs[pm0, fq[i], k]
-    # one pass over the steps, stopping at each anchor
-    n_out = base.shape[0]
-    cur = np.int64(0)
-    k_out = 0
-    while k_out < n_out:
-        b = base[k_out]
-        _advance(y, mu, al, s, cur, b)
-        cur = b
-        k2 = k_out + 1
-        while k2 < n_out and base[k2] == b:
-            k2 += 1
-        for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
-            _form(kk, y, Gs, rq, opat, ow, out)
-        last = k2 - 1
-        nxt = base[k2] if k2 < n_out else n_steps
-        if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
-            w0 = ow[last, 0]
-            d5 = _dots_step5(y, mu, al, s, b, gf)
-            for i in range(n_rq):
-                out[fq[i], last] = w0 * d5[i]
-            cur = b + 5
-        else:
-            _form(last, y, Gs, rq, opat, ow, out)
-        k_out = k2
-    _advance(y, mu, al, s, cur, n_steps)
-    _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
-    for k in range(m):
-        z[k] = rho[k] * y[k]
-    # final temperatures T = V z = Cap^-1/2 W z
-    apply_w(nrot, rot_i, rot_cs, z)
-    for i in range(n_nodes):
-        tend[i] = 0.0
-    for i in range(m):
-        tend[j0 + i] = dinv[i] * z[i]
-    if j0 == 1:
-        tend[0] = ue[n_steps]
-    if boundary.is_known(bc_type[1]):
-        tend[n_nodes - 1] = ui[n_steps]
-
-
 @njit(cache=True, nogil=True)
-def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
+def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s):
     """Run every candidate through its modal recursion (see module docstring). Releases the GIL: a
     caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`).
 
@@ -674,12 +505,179 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want
     t0 : (c, j) initial node temperatures, or shape (c, 0) for the steady state of the first inputs
 
     Returns out (c, p + 2, k) and the final node temperatures (c, j) (known face nodes included).
+    ``want`` (p + 2,) bool: the output rows to form (others are left NaN); fewer rows need fewer
+    eigenvector components and less work per output time. (One function with the candidate loop
+    around the body: each level of njit calls re-optimises its callees, so a wrapper costs compile time.)
     """
-    nc = cap.shape[0]
-    out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
-    tend = np.empty(cap.shape)
-    for c in range(nc):
-        _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
-        )
-    return out, tend
+    outs = np.empty((caps.shape[0], pas.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
+    tends = np.empty(caps.shape)
+    for cand in range(caps.shape[0]):
+        cap = caps[cand]
+        g = gs[cand]
+        pa = pas[cand]
+        pb = pbs[cand]
+        pw = pws[cand]
+        t0 = t0s[cand]
+        out = outs[cand]
+        tend = tends[cand]
+        base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
+        n_nodes = cap.shape[0]
+        j0, m = operator.unknown_range(n_nodes, bc_type)
+        npr = pa.shape[0]
+        n_q = npr + 2
+        n_steps = ue.shape[0] - 1
+        kd = np.empty(m)
+        ko = np.empty(m)
+        G_nodes = np.empty((n_q, m))
+        D = np.empty((n_q, N_FEAT))
+        pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
+        n_rq = 0
+        for q in range(n_q):
+            if want[q]:
+                n_rq += 1
+            else:
+                for i in range(m):
+                    G_nodes[q, i] = 0.0
+        rq = np.empty(n_rq, dtype=np.int64)
+        fq = np.full(N_FUSED, n_q, dtype=np.int64)  # fused rows, padded with the zero row n_q
+        n_rq = 0
+        for q in range(n_q):
+            if want[q]:
+                rq[n_rq] = q
+                if n_rq < N_FUSED:
+                    fq[n_rq] = q
+                n_rq += 1
+            else:
+                out[q, :] = np.nan
+        # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
+        dinv = np.empty(m)
+        for i in range(m):
+            dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
+        lam = np.empty(m)
+        ee = np.zeros(m)
+        for i in range(m):
+            lam[i] = kd[i] * dinv[i] * dinv[i]
+        for i in range(m - 1):
+            ee[i] = ko[i] * dinv[i] * dinv[i + 1]
+        # unknowns whose eigenvector components are needed: both ends and the probes' nodes
+        col = np.full(m, -1, dtype=np.int64)
+        col[0] = 0
+        r = 1
+        for i in range(1, m):
+            need = i == m - 1
+            for q in range(n_q):
+                if G_nodes[q, i] != 0.0:
+                    need = True
+            if need:
+                col[i] = r
+                r += 1
+        zt = np.zeros((m, r))
+        for i in range(m):
+            if col[i] >= 0:
+                zt[i, col[i]] = 1.0
+        rot_i = np.empty(2 * m * m, dtype=np.int64)
+        rot_cs = np.empty((2 * m * m, 2))
+        nrot, rot_i, rot_cs = tridiag_ql(lam, ee, zt, rot_i, rot_cs)
+        if nrot < 0:
+            out[:, :] = np.nan
+            tend[:] = np.nan
+            continue
+        # modal coefficients; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
+        mu = np.empty(m)
+        r0 = np.empty(m)
+        r1 = np.empty(m)
+        z = np.empty(m)  # modal state
+        ce = col[0]
+        ci = col[m - 1]
+        for k in range(m):
+            den = 1.0 / dt + theta * lam[k]
+            mu[k] = (1.0 / dt - (1.0 - theta) * lam[k]) / den
+            a0 = dinv[0] * zt[k, ce] * pe
+            a1 = dinv[m - 1] * zt[k, ci] * pi
+            r0[k] = a0 / den
+            r1[k] = a1 / den
+            # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
+            z[k] = (a0 * ue[0] + a1 * ui[0]) / lam[k]
+        if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T)
+            for i in range(m):
+                z[i] = t0[j0 + i] / dinv[i]
+            apply_wt(nrot, rot_i, rot_cs, z)
+        # output rows in modal coordinates: G = G_nodes V
+        G = np.zeros((n_q, m))
+        for q in range(n_q):
+            for i in range(m):
+                h = G_nodes[q, i]
+                if h != 0.0:
+                    h *= dinv[i]
+                    c = col[i]
+                    for k in range(m):
+                        G[q, k] += h * zt[k, c]
+        # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
+        # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
+        # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
+        rmax = 0.0
+        for k in range(m):
+            rmax = max(rmax, abs(r0[k]), abs(r1[k]))
+        tiny = 1e-150 * rmax if rmax > 0.0 else 1e-150
+        rho = np.empty(m)
+        al = np.empty(m)
+        y = np.empty(m)
+        for k in range(m):
+            rk = r1[k]
+            if abs(rk) < tiny:
+                rk = tiny
+            rho[k] = rk
+            al[k] = r0[k] / rk
+            y[k] = z[k] / rk
+        # per output pattern: Gs = G P(mu) rho over the scaled state and H (row n_q stays zero: the
+        # padding of the fused rows)
+        n_pat = wp.shape[0]
+        Gs = np.zeros((n_pat, n_q + 1, m))
+        H = np.zeros((n_pat, n_q + 1, 6))
+        _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H)
+        # the fused rows of the main pattern, extracted once (a view per output would cost reference
+        # counting in the loop; other patterns go through _form)
+        pm0 = pmain[0]
+        gf = np.empty((N_FUSED, m))  # one array: LLVM checks its rows against the state as one object
+        for i in range(N_FUSED):
+            for k in range(m):
+                gf[i, k] = Gs[pm0, fq[i], k]
+        # one pass over the steps, stopping at each anchor
+        n_out = base.shape[0]
+        cur = np.int64(0)
+        k_out = 0
+        while k_out < n_out:
+            b = base[k_out]
+            _advance(y, mu, al, s, cur, b)
+            cur = b
+            k2 = k_out + 1
+            while k2 < n_out and base[k2] == b:
+                k2 += 1
+            for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
+                _form(kk, y, Gs, rq, opat, ow, out)
+            last = k2 - 1
+            nxt = base[k2] if k2 < n_out else n_steps
+            if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
+                w0 = ow[last, 0]
+                d5 = _dots_step5(y, mu, al, s, b, gf)
+                for i in range(n_rq):
+                    out[fq[i], last] = w0 * d5[i]
+                cur = b + 5
+            else:
+                _form(last, y, Gs, rq, opat, ow, out)
+            k_out = k2
+        _advance(y, mu, al, s, cur, n_steps)
+        _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
+        for k in range(m):
+            z[k] = rho[k] * y[k]
+        # final temperatures T = V z = Cap^-1/2 W z
+        apply_w(nrot, rot_i, rot_cs, z)
+        for i in range(n_nodes):
+            tend[i] = 0.0
+        for i in range(m):
+            tend[j0 + i] = dinv[i] * z[i]
+        if j0 == 1:
+            tend[0] = ue[n_steps]
+        if boundary.is_known(bc_type[1]):
+            tend[n_nodes - 1] = ui[n_steps]
+    return outs, tends

@@ -55,38 +55,29 @@ def assemble_operator(g, w, bc_type, bc_h, w_bc, j0, m, diag, off):
     return pe, pi
 
 
-@njit(cache=True)
-def node_stiffness(cap, g, bc_type, bc_h, dt, s):
-    """``s_j = dt (sum of the conductances at node j) / c_j`` (face terms included): inf for a node
-    without capacity, 0 for a known face node."""
-    n_nodes = cap.shape[0]
-    n_links = g.shape[0]
-    for j in range(n_nodes):
-        s[j] = 0.0
-    for lnk in range(n_links):
-        s[lnk] += g[lnk]
-        s[lnk + 1] += g[lnk]
-    s[0] += boundary.face_conductance(bc_type[0], bc_h[0])
-    s[n_nodes - 1] += boundary.face_conductance(bc_type[1], bc_h[1])
-    for j in range(n_nodes):
-        s[j] = s[j] * dt / cap[j] if cap[j] > 0.0 else np.inf
-    if boundary.is_known(bc_type[0]):
-        s[0] = 0.0
-    if boundary.is_known(bc_type[1]):
-        s[n_nodes - 1] = 0.0
+def node_stiffness(cap, g, bc_type, bc_h, dt):
+    """``s_j = dt (sum of the conductances at node j) / c_j`` (face terms included), shape (c, j): inf
+    for a node without capacity, 0 for a known face node. (numpy: it runs once per batch.)"""
+    total = np.zeros(cap.shape)
+    total[:, :-1] += g
+    total[:, 1:] += g
+    for f, j in ((0, 0), (1, -1)):
+        total[:, j] += [boundary.face_conductance(bc_type[f], h) for h in bc_h[:, f]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(cap > 0.0, total * dt / np.where(cap > 0.0, cap, 1.0), np.inf)
+    for f, j in ((0, 0), (1, -1)):
+        if boundary.is_known(bc_type[f]):
+            s[:, j] = 0.0
+    return s
 
 
-@njit(cache=True)
 def _raised_theta(theta0, budget, s):
-    """theta of a term whose stiffest node has stiffness s: (1 - theta) s <= budget."""
-    if not np.isfinite(s):
-        return 1.0
-    if s * (1.0 - theta0) <= budget:
-        return theta0
-    return 1.0 - budget / s
+    """theta of a term whose stiffest node has stiffness s (array): (1 - theta) s <= budget."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        th = np.where(s * (1.0 - theta0) <= budget, theta0, 1.0 - budget / s)
+    return np.where(np.isfinite(s), th, 1.0)
 
 
-@njit(cache=True)
 def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     """theta per link (c, l) and per face term (c, 2), and the number of terms whose theta was raised (c,).
 
@@ -98,32 +89,27 @@ def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
 
         theta_l = max(theta0, 1 - (1 - theta0) L / max(s_a, s_b)),   L = stiff_limit,
 
-    and a face term the same with its face node's stiffness. With ``L = 1 / (1 - theta0)`` (2 for
-    Crank-Nicolson, the default) this is exactly the condition, met with equality at the stiff nodes;
-    terms between nodes with ``s <= L`` keep theta0. ``L = inf`` keeps theta0 except at nodes
-    without capacity (theta 1).
+    and an air face's term the same with its face node's stiffness (any face term whose node has no
+    capacity: 1). With ``L = 1 / (1 - theta0)`` (2 for Crank-Nicolson, the default) this is exactly
+    the condition, met with equality at the stiff nodes; terms between nodes with ``s <= L`` keep
+    theta0. ``L = inf`` keeps theta0 except at nodes without capacity (theta 1).
     """
-    nc, n_nodes = cap.shape
-    n_links = g.shape[1]
-    theta = np.full((nc, n_links), theta0)
-    bc_theta = np.full((nc, 2), theta0)
+    cap = np.asarray(cap, dtype=float)
+    g = np.asarray(g, dtype=float)
+    nc = cap.shape[0]
+    theta = np.full(g.shape, float(theta0))
+    bc_theta = np.full((nc, 2), float(theta0))
     n_raised = np.zeros(nc, dtype=np.int64)
     if theta0 >= 1.0:
         return theta, bc_theta, n_raised
-    s = np.empty(n_nodes)
+    s = node_stiffness(cap, g, bc_type, np.asarray(bc_h, dtype=float), dt)
     budget = (1.0 - theta0) * stiff_limit
-    for c in range(nc):
-        node_stiffness(cap[c], g[c], bc_type, bc_h[c], dt, s)
-        for lnk in range(n_links):
-            th = _raised_theta(theta0, budget, max(s[lnk], s[lnk + 1]))
-            if th > theta0:
-                theta[c, lnk] = th
-                n_raised[c] += 1
-        for f in range(2):  # a face term enters B through h; a face node without capacity is algebraic
-            sf = s[0 if f == 0 else n_nodes - 1]
-            if boundary.face_conductance(bc_type[f], bc_h[c, f]) > 0.0 or not np.isfinite(sf):
-                th = _raised_theta(theta0, budget, sf)
-                if th > theta0:
-                    bc_theta[c, f] = th
-                    n_raised[c] += 1
-    return theta, bc_theta, n_raised
+    theta = _raised_theta(theta0, budget, np.maximum(s[:, :-1], s[:, 1:]))
+    n_raised += (theta > theta0).sum(axis=1)
+    for f, j in ((0, 0), (1, -1)):  # a face term enters B through h; a face node without capacity is algebraic
+        h_face = np.array([boundary.face_conductance(bc_type[f], h) for h in bc_h[:, f]])
+        applies = (h_face > 0.0) | ~np.isfinite(s[:, j])
+        th = np.where(applies, _raised_theta(theta0, budget, s[:, j]), theta0)
+        bc_theta[:, f] = th
+        n_raised += th > theta0
+    return np.ascontiguousarray(theta), bc_theta, n_raised
