@@ -4,7 +4,7 @@ Build once, run many: :meth:`FDEngine.prepare` turns a :class:`SimulationInput`
 into a :class:`PreparedFD` (grid, boundary series, output positions, conductivity
 laws); :meth:`PreparedFD.run_batch` then runs any number of candidate walls
 (same layer structure, other properties or probe depths) in one call of the
-numba kernel, in parallel over candidates.
+numba kernel, split over threads by candidate (:func:`in_threads`).
 
 Scheme details
 --------------
@@ -12,9 +12,10 @@ Scheme details
   otherwise break the discrete maximum principle (a step response would ring): with the node
   stiffness ``s_i = dt sum g / c_i`` (Robin terms included, inf without capacity), a link gets
   ``theta = max(theta0, 1 - 1 / max(s_a, s_b))`` (see :func:`wallcal.engines.operator.link_thetas`
-  and docs/engine.md). Ordinary walls at C >= 1 have s <= 2 and keep Crank-Nicolson on every
-  link; thin, very conductive layers (metal sheets), light half-cells next to a contact
-  resistance and nodes without capacity get a raised theta; ``info["implicit_links"]`` says how
+  and docs/engine.md). Walls whose layers are several grid spacings thick (C = 2) have s <= 2
+  and keep Crank-Nicolson on every link; thin, very conductive layers (metal sheets), thin layers
+  at coarse steps, light half-cells next to a contact resistance and nodes without capacity get a
+  raised theta; ``info["implicit_links"]`` says how
   many terms. ``stiff_limit`` (option) replaces the limit 2 (``inf``: theta0 everywhere).
 - lambda(T): each link's conductance is the Kirchhoff mean of lambda over its two
   node temperatures, evaluated at the mid-step temperature extrapolated from the
@@ -32,14 +33,14 @@ Scheme details
   series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces.
   Outputs between grid times are interpolated linearly in time.
 - Paths: walls with constant conductances, heat capacity at every unknown node
-  and no stiff link take the exact modal fast path (:mod:`wallcal.engines.modal`);
+  and one theta on every term (none raised) take the exact modal fast path (:mod:`wallcal.engines.modal`);
   the others the general tridiagonal path (:mod:`wallcal.engines.kernels`).
   ``run_batch(path="auto")`` chooses, the result's ``path`` says which ran.
 - Per call, Python only checks the inputs and calls numba functions (grid
   assembly, thetas, probe weights, the batch kernel); everything that depends
   only on the boundary data and output times (theta-weighted inputs, the modal
   output plan) is computed once per :class:`PreparedFD`. No BLAS or LAPACK is
-  called inside the kernels, so their threads cannot oversubscribe numba's.
+  called inside the kernels, so their threads cannot oversubscribe ours.
 """
 
 from __future__ import annotations
@@ -270,7 +271,7 @@ class PreparedFD:
         if path == "modal" and not possible:
             raise EngineError(
                 "the modal fast path needs constant conductivities, heat capacity at every "
-                "unknown node and no stiff links; use path='general'"
+                "unknown node and one theta on every link (none raised by the theta rule); use path='general'"
             )
         if path in ("auto", "modal") and possible:
             return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced, rows)

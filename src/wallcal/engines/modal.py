@@ -37,7 +37,7 @@ combines two) and are computed once per candidate.
 An output then costs one multiply-add per mode and requested row, fused into
 the pass over the modes that steps on to the next anchor.
 
-Per candidate (everything inside the numba batch loop, in parallel over candidates):
+Per candidate (everything inside the numba batch loop; a batch is split over threads by the caller):
 
 1. ``K``, ``p`` and the output rows are assembled from the node capacities, the
    link conductances and the probe interpolation weights (no Python per candidate).
@@ -46,7 +46,7 @@ Per candidate (everything inside the numba batch loop, in parallel over candidat
    rotations are applied only to the few rows of the eigenvector matrix the
    outputs need (both ends, the probes' nodes) and recorded, so that the initial
    and final states can be mapped with them. O(m^2) instead of the O(m^3) of a
-   dense ``eigh``, and no LAPACK/BLAS call (no threads of its own inside numba's).
+   dense ``eigh``, and no LAPACK/BLAS call (no threads of its own inside ours).
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
    over the steps: between two anchors five steps apart (5-minute data at
    1-minute steps), one loop over the modes forms the anchor's output rows and
