@@ -55,27 +55,35 @@ def assemble_operator(g, w, bc_type, bc_h, w_bc, j0, m, diag, off):
     return pe, pi
 
 
-def node_stiffness(cap, g, bc_type, bc_h, dt):
+def node_stiffness(cap, g, bc_type, bc_h, dt, h_face=None):
     """``s_j = dt (sum of the conductances at node j) / c_j`` (face terms included), shape (c, j): inf
     for a node without capacity, 0 for a known face node. (numpy: it runs once per batch.)"""
     total = np.zeros(cap.shape)
     total[:, :-1] += g
     total[:, 1:] += g
-    for f, j in ((0, 0), (1, -1)):
-        total[:, j] += [boundary.face_conductance(bc_type[f], h) for h in bc_h[:, f]]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(cap > 0.0, total * dt / np.where(cap > 0.0, cap, 1.0), np.inf)
+    if h_face is None:
+        h_face = _face_conductances(bc_type, bc_h)
+    total[:, 0] += h_face[0]
+    total[:, -1] += h_face[1]
+    s = np.divide(total * dt, cap, out=np.full(cap.shape, np.inf), where=cap > 0.0)
     for f, j in ((0, 0), (1, -1)):
         if boundary.is_known(bc_type[f]):
             s[:, j] = 0.0
     return s
 
 
+def _face_conductances(bc_type, bc_h):
+    """Per face, the face conductance of every candidate (:func:`boundary.face_conductance`)."""
+    return [np.array([boundary.face_conductance(bc_type[f], h) for h in bc_h[:, f]]) for f in (0, 1)]
+
+
 def _raised_theta(theta0, budget, s):
     """theta of a term whose stiffest node has stiffness s (array): (1 - theta) s <= budget."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        th = np.where(s * (1.0 - theta0) <= budget, theta0, 1.0 - budget / s)
-    return np.where(np.isfinite(s), th, 1.0)
+    raise_ = np.isfinite(s) & (s * (1.0 - theta0) > budget)
+    th = np.full(s.shape, float(theta0))
+    th[raise_] = 1.0 - budget / s[raise_]
+    th[~np.isfinite(s)] = 1.0  # a node without capacity
+    return th
 
 
 def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
@@ -102,13 +110,14 @@ def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     n_raised = np.zeros(nc, dtype=np.int64)
     if theta0 >= 1.0:
         return theta, bc_theta, n_raised
-    s = node_stiffness(cap, g, bc_type, np.asarray(bc_h, dtype=float), dt)
+    bc_h = np.asarray(bc_h, dtype=float)
+    h_face = _face_conductances(bc_type, bc_h)
+    s = node_stiffness(cap, g, bc_type, bc_h, dt, h_face)
     budget = (1.0 - theta0) * stiff_limit
     theta = _raised_theta(theta0, budget, np.maximum(s[:, :-1], s[:, 1:]))
     n_raised += (theta > theta0).sum(axis=1)
     for f, j in ((0, 0), (1, -1)):  # a face term enters B through h; a face node without capacity is algebraic
-        h_face = np.array([boundary.face_conductance(bc_type[f], h) for h in bc_h[:, f]])
-        applies = (h_face > 0.0) | ~np.isfinite(s[:, j])
+        applies = (h_face[f] > 0.0) | ~np.isfinite(s[:, j])
         th = np.where(applies, _raised_theta(theta0, budget, s[:, j]), theta0)
         bc_theta[:, f] = th
         n_raised += th > theta0
