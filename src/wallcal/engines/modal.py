@@ -385,7 +385,7 @@ def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
                 H[p, q, 2 * i + 1] = h1
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inline="always")
 def _advance(y, mu, al, s, n_from, n_to):
     """Advance the scaled modal state ``y = z / r1`` from grid time n_from to n_to (in place):
     ``y <- mu y + (alpha s0 + s1)``, two multiply-adds per mode and step, four steps per pass over
@@ -411,7 +411,7 @@ def _advance(y, mu, al, s, n_from, n_to):
         n += 1
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inline="always")
 def _dots_step5(y, mu, al, s, n, gf):
     """The dot products of the scaled state at grid time n with the five rows of ``gf`` (padded with
     zero rows), and five steps on (to n + 5), in one pass over the modes. (The rows are one 2-D
@@ -442,7 +442,7 @@ def _dots_step5(y, mu, al, s, n, gf):
     return d0, d1, d2, d3, d4
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inline="always")
 def _form(k_out, y, Gs, rq, opat, ow, out):
     """The state part of output k_out from the state at its anchor: a dot product per requested
     row and pattern (the input terms are added by :func:`_input_terms`)."""
@@ -486,6 +486,37 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
             for i in range(6):
                 acc += H[xp[j], q, i] * sw[i, k]
             oq[k] += xw[j] * acc
+
+
+@njit(cache=True, fastmath=True)
+def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_steps):
+    """The pass over the steps of one candidate, stopping at each output's anchor (see the module
+    docstring): the hot loop, in one function compiled with fastmath and its steps inlined (the
+    candidate's set-up around it needs neither, and compiles faster without)."""
+    n_out = base.shape[0]
+    cur = np.int64(0)
+    k_out = 0
+    while k_out < n_out:
+        b = base[k_out]
+        _advance(y, mu, al, s, cur, b)
+        cur = b
+        k2 = k_out + 1
+        while k2 < n_out and base[k2] == b:
+            k2 += 1
+        for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
+            _form(kk, y, Gs, rq, opat, ow, out)
+        last = k2 - 1
+        nxt = base[k2] if k2 < n_out else n_steps
+        if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
+            w0 = ow[last, 0]
+            d5 = _dots_step5(y, mu, al, s, b, gf)
+            for i in range(n_rq):
+                out[fq[i], last] = w0 * d5[i]
+            cur = b + 5
+        else:
+            _form(last, y, Gs, rq, opat, ow, out)
+        k_out = k2
+    _advance(y, mu, al, s, cur, n_steps)
 
 
 @njit(cache=True, nogil=True)
@@ -643,30 +674,7 @@ def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan,
             for k in range(m):
                 gf[i, k] = Gs[pm0, fq[i], k]
         # one pass over the steps, stopping at each anchor
-        n_out = base.shape[0]
-        cur = np.int64(0)
-        k_out = 0
-        while k_out < n_out:
-            b = base[k_out]
-            _advance(y, mu, al, s, cur, b)
-            cur = b
-            k2 = k_out + 1
-            while k2 < n_out and base[k2] == b:
-                k2 += 1
-            for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
-                _form(kk, y, Gs, rq, opat, ow, out)
-            last = k2 - 1
-            nxt = base[k2] if k2 < n_out else n_steps
-            if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
-                w0 = ow[last, 0]
-                d5 = _dots_step5(y, mu, al, s, b, gf)
-                for i in range(n_rq):
-                    out[fq[i], last] = w0 * d5[i]
-                cur = b + 5
-            else:
-                _form(last, y, Gs, rq, opat, ow, out)
-            k_out = k2
-        _advance(y, mu, al, s, cur, n_steps)
+        _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_steps)
         _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
         for k in range(m):
             z[k] = rho[k] * y[k]
