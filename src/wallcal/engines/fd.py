@@ -216,6 +216,16 @@ class PreparedFD:
         return operator.link_thetas(cap, g, self.bc_type, bc_h, self.theta, self.dt, limit)
 
     # ------------------------------------------------------------------ running
+    def _probe_weights(self, probe_depths: np.ndarray | None, nc: int) -> tuple[np.ndarray, ...]:
+        """Probe interpolation (grid.probe_weights); at the prepared wall's own depths computed once per
+        batch size."""
+        if probe_depths is not None:
+            return probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
+        cache = self.__dict__.setdefault("_default_probe_weights", {})
+        if nc not in cache:
+            cache[nc] = probe_weights(self.grid, self.probe_depth_matrix(n=nc), self.probe_sides)
+        return cache[nc]
+
     def probe_depth_matrix(self, walls: list[Wall] | None = None, n: int = 1) -> np.ndarray:
         """Probe depths [m], shape (n_candidates, n_probes)."""
         if walls is None:
@@ -260,13 +270,11 @@ class PreparedFD:
             these (the others are NaN), which saves time when calibrating on a few targets.
         """
         nc = props.n_candidates
-        if probe_depths is None:
-            probe_depths = self.probe_depth_matrix(n=nc)
         cap, g = assemble(self.grid, props)
         if not (np.isfinite(cap).all() and np.isfinite(g).all()) or (g <= 0).any() or (cap < 0).any():
             raise EngineError("candidate wall with non-positive or non-finite properties")
         theta, bc_theta, n_forced = self._thetas(cap, g)
-        pa, pb, pw = probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
+        pa, pb, pw = self._probe_weights(probe_depths, nc)
         possible = self.fast_path_possible(cap, n_forced)
         if path == "modal" and not possible:
             raise EngineError(

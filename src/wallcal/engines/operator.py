@@ -114,6 +114,8 @@ def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     h_face = _face_conductances(bc_type, bc_h)
     s = node_stiffness(cap, g, bc_type, bc_h, dt, h_face)
     budget = (1.0 - theta0) * stiff_limit
+    if np.isfinite(s).all() and (s * (1.0 - theta0) <= budget).all():  # no node too stiff: theta0 everywhere
+        return theta, bc_theta, n_raised
     theta = _raised_theta(theta0, budget, np.maximum(s[:, :-1], s[:, 1:]))
     n_raised += (theta > theta0).sum(axis=1)
     for f, j in ((0, 0), (1, -1)):  # a face term enters B through h; a face node without capacity is algebraic
