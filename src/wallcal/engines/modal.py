@@ -496,27 +496,27 @@ def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_s
     n_out = base.shape[0]
     cur = np.int64(0)
     k_out = 0
-    while k_out < n_out:
-        b = base[k_out]
+    while True:  # (each step function has one call site: they are inlined)
+        b = base[k_out] if k_out < n_out else np.int64(n_steps)
         _advance(y, mu, al, s, cur, b)
         cur = b
+        if k_out >= n_out:
+            break
         k2 = k_out + 1
         while k2 < n_out and base[k2] == b:
             k2 += 1
-        for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
-            _form(kk, y, Gs, rq, opat, ow, out)
         last = k2 - 1
         nxt = base[k2] if k2 < n_out else n_steps
-        if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
+        fused = nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED
+        for kk in range(k_out, k2 - 1 if fused else k2):  # outputs formed by dot products
+            _form(kk, y, Gs, rq, opat, ow, out)
+        if fused:  # the last output of the anchor and five steps on, in one pass over the modes
             w0 = ow[last, 0]
             d5 = _dots_step5(y, mu, al, s, b, gf)
             for i in range(n_rq):
                 out[fq[i], last] = w0 * d5[i]
             cur = b + 5
-        else:
-            _form(last, y, Gs, rq, opat, ow, out)
         k_out = k2
-    _advance(y, mu, al, s, cur, n_steps)
 
 
 @njit(cache=True, nogil=True)
