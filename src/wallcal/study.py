@@ -146,7 +146,7 @@ class SimulationSpec:
     time_step: float = 60.0
     grid_constant: float = 2.0
     node_rule: str = "wallcal"
-    stiff_limit: float = 10.0
+    stiff_limit: float | None = None  # None: the engine's derived limit 1 / (1 - theta)
 
 
 @dataclass(frozen=True)
@@ -488,7 +488,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             time_step=smt.num("time_step", 60.0, gt=0.0, le=86400.0) or 60.0,
             grid_constant=smt.num("grid_constant", 2.0, gt=0.0, le=1000.0) or 2.0,
             node_rule=smt.str("node_rule", "wallcal", choices=("wallcal", "energyplus")) or "wallcal",
-            stiff_limit=smt.num("stiff_limit", 10.0, gt=0.0) or 10.0,
+            stiff_limit=smt.num("stiff_limit", None, gt=0.0),
         )
     calib = None
     if top.has("calibration"):

@@ -74,8 +74,10 @@ class EngineOptions:
 
     Parameters
     ----------
-    stiff_limit : float
-        fd engines: links with ``g dt (1/c_a + 1/c_b)`` above this are fully implicit [-].
+    stiff_limit : float or None
+        fd engines: node stiffness ``dt sum(g) / c`` [-] above which theta is raised on the node's links
+        (see :func:`wallcal.engines.operator.link_thetas`); None: ``1 / (1 - theta)``, the discrete
+        maximum principle (monotone step responses).
     refactor_drift : float
         fd engines, lambda(T): refactorise the matrix when a conductance drifts this much
         from the factorised one (fraction; 0: every step).
@@ -90,7 +92,7 @@ class EngineOptions:
         time on a fixed grid).
     """
 
-    stiff_limit: float = 10.0
+    stiff_limit: float | None = None
     refactor_drift: float = 0.02
     exponential_layers: frozenset[int] = frozenset()
     contact_layers: frozenset[int] = frozenset()

@@ -5,18 +5,19 @@ The engine contract (:mod:`wallcal.engines.base`) on a build-once, run-many core
 into a :class:`PreparedFD` (grid, boundary series, output positions, conductivity
 laws); :meth:`PreparedFD.run_batch` then runs any number of candidate walls
 (same layer structure, other properties or probe depths) in one call of the
-numba kernel, in parallel over candidates.
+numba kernel, split over threads by candidate (:func:`in_threads`).
 
 Scheme details
 --------------
-- theta = 1/2 (``cn``) or 1 (``implicit``) on every link, except links that
-  touch a node without heat capacity (no-mass layers at a face, two no-mass
-  layers in a row) and links so stiff that Crank-Nicolson would ring
-  (``g dt (1/c_a + 1/c_b) > stiff_limit``, default 10: thin, very conductive
-  layers such as a metal sheet, or a contact resistance calibrated towards 0).
-  Those links are fully implicit (L-stable), which damps their ringing while
-  the rest of the wall keeps second-order accuracy. On ordinary walls with
-  C >= 1 no link is switched; ``info["implicit_links"]`` says how many were.
+- theta = 1/2 (``cn``) or 1 (``implicit``) on every link, raised where the scheme would
+  otherwise break the discrete maximum principle (a step response would ring): with the node
+  stiffness ``s_i = dt sum g / c_i`` (Robin terms included, inf without capacity), a link gets
+  ``theta = max(theta0, 1 - 1 / max(s_a, s_b))`` (see :func:`wallcal.engines.operator.link_thetas`
+  and docs/engine.md). Walls whose layers are several grid spacings thick (C = 2) have s <= 2
+  and keep Crank-Nicolson on every link; thin, very conductive layers (metal sheets), thin layers
+  at coarse steps, light half-cells next to a contact resistance and nodes without capacity get a
+  raised theta; ``info["implicit_links"]`` says how
+  many terms. ``stiff_limit`` (option) replaces the limit 2 (``inf``: theta0 everywhere).
 - lambda(T): each link's conductance is the Kirchhoff mean of lambda over its two
   node temperatures, evaluated at the mid-step temperature extrapolated from the
   last two steps (``1.5 T^n - 0.5 T^{n-1}``); the matrix stays factorised at
@@ -34,21 +35,23 @@ Scheme details
   wall (``SimulationInput.flux_depths``) comes from three probes the engine adds around the depth
   (:mod:`wallcal.engines.depthflux`). Outputs between grid times are interpolated linearly in time.
 - Paths: walls with constant conductances, heat capacity at every unknown node
-  and no stiff link take the exact modal fast path (:mod:`wallcal.engines.modal`);
+  and one theta on every term (none raised) take the exact modal fast path (:mod:`wallcal.engines.modal`);
   the others the general tridiagonal path (:mod:`wallcal.engines.kernels`).
   ``run_batch(path="auto")`` chooses, the result's ``path`` says which ran.
 - Per call, Python only checks the inputs and calls numba functions (grid
   assembly, thetas, probe weights, the batch kernel); everything that depends
   only on the boundary data and output times (theta-weighted inputs, the modal
   output plan) is computed once per :class:`PreparedFD`. No BLAS or LAPACK is
-  called inside the kernels, so their threads cannot oversubscribe numba's.
+  called inside the kernels, so their threads cannot oversubscribe ours.
 """
 
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..errors import EngineError
@@ -63,13 +66,12 @@ from ..grid import (
     probe_weights,
 )
 from ..wall import Probe, Wall
-from . import kernels, modal
+from . import boundary, kernels, modal, operator
 from .base import BatchOutput, Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch
 from .depthflux import contact_at, depth_probes, flux_at_depth
 
-BC_CODES = {"surface_temperature": kernels.DIRICHLET, "air_temperature": kernels.ROBIN, "heat_flux": kernels.FLUX}
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
-DEFAULT_STIFF_LIMIT = 10.0
+DEFAULT_STIFF_LIMIT = None  # 1 / (1 - theta): the discrete maximum principle (see operator.link_thetas)
 
 
 @dataclass
@@ -102,6 +104,25 @@ class BatchResult:
         return self.energy[:, 0] - (self.energy[:, 1] - self.energy[:, 2])
 
 
+_POOL: ThreadPoolExecutor | None = None
+
+
+def in_threads(part, n: int):
+    """Run ``part(slice)`` over ``n`` candidates split into contiguous chunks, one per thread (the
+    kernels release the GIL), and concatenate the results along the first axis. Threads: numba's
+    ``NUMBA_NUM_THREADS`` (the number of cores unless set). One candidate runs on the calling thread.
+    """
+    global _POOL
+    n_threads = min(n, max(1, int(numba.config.NUMBA_NUM_THREADS)))
+    if n_threads <= 1:
+        return part(slice(0, n))
+    if _POOL is None or _POOL._max_workers < n_threads:
+        _POOL = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="wallcal-fd")
+    bounds = np.linspace(0, n, n_threads + 1).round().astype(int)
+    parts = list(_POOL.map(lambda i: part(slice(bounds[i], bounds[i + 1])), range(n_threads)))
+    return tuple(np.concatenate(chunks, axis=0) for chunks in zip(*parts, strict=True))
+
+
 class PreparedFD:
     """A wall, its grid and its boundary data, ready to run candidate walls."""
 
@@ -109,23 +130,21 @@ class PreparedFD:
         self.inp = inp
         self.grid = grid
         self.wall = inp.wall
-        self.stiff_limit = float(stiff_limit)
+        self.stiff_limit = None if stiff_limit is None else float(stiff_limit)
         if inp.scheme not in SCHEME_THETA:
             raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
         self.theta = SCHEME_THETA[inp.scheme]
         self.dt = float(inp.time_step)
-        self.bc_type = np.array([BC_CODES[inp.exterior.type], BC_CODES[inp.interior.type]], dtype=np.int64)
-        if (self.bc_type == kernels.FLUX).all():
+        (code_e, h_e), (code_i, h_i) = (
+            boundary.face_parameters(face.type, face.surface_coefficient) for face in (inp.exterior, inp.interior)
+        )
+        self.bc_type = np.array([code_e, code_i], dtype=np.int64)
+        self.bc_h = np.array([h_e, h_i])
+        if boundary.imposes_flux(code_e) and boundary.imposes_flux(code_i):
             raise EngineError(
                 "heat-flux boundaries on both faces leave the wall's temperature level undetermined: "
                 "impose a temperature on at least one face"
             )
-        self.bc_h = np.array(
-            [
-                inp.exterior.surface_coefficient or 0.0 if inp.exterior.type == "air_temperature" else 0.0,
-                inp.interior.surface_coefficient or 0.0 if inp.interior.type == "air_temperature" else 0.0,
-            ]
-        )
         self.ue = np.ascontiguousarray(inp.exterior.values, dtype=float)
         self.ui = np.ascontiguousarray(inp.interior.values, dtype=float)
         pos = np.asarray(inp.output_positions, dtype=float)
@@ -195,17 +214,21 @@ class PreparedFD:
 
     def _thetas(self, cap: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """theta per link and per boundary term, and the number of links made implicit."""
-        return kernels.link_thetas(
-            cap,
-            g,
-            self.theta,
-            self.dt,
-            self.stiff_limit,
-            self.bc_type[0] == kernels.DIRICHLET,
-            self.bc_type[1] == kernels.DIRICHLET,
-        )
+        limit = self.stiff_limit if self.stiff_limit is not None else 1.0 / max(1.0 - self.theta, 1e-300)
+        bc_h = np.broadcast_to(self.bc_h, (cap.shape[0], 2)).copy()
+        return operator.link_thetas(cap, g, self.bc_type, bc_h, self.theta, self.dt, limit)
 
     # ------------------------------------------------------------------ running
+    def _probe_weights(self, probe_depths: np.ndarray | None, nc: int) -> tuple[np.ndarray, ...]:
+        """Probe interpolation (grid.probe_weights); at the prepared wall's own depths computed once per
+        batch size."""
+        if probe_depths is not None:
+            return probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
+        cache = self.__dict__.setdefault("_default_probe_weights", {})
+        if nc not in cache:
+            cache[nc] = probe_weights(self.grid, self.probe_depth_matrix(n=nc), self.probe_sides)
+        return cache[nc]
+
     def probe_depth_matrix(self, walls: list[Wall] | None = None, n: int = 1) -> np.ndarray:
         """Probe depths [m], shape (n_candidates, n_probes)."""
         if walls is None:
@@ -215,10 +238,8 @@ class PreparedFD:
     @property
     def unknown_range(self) -> tuple[int, int]:
         """(first, count) of the unknown nodes (faces with an imposed temperature are known)."""
-        n = self.grid.n_nodes
-        j0 = 1 if self.bc_type[0] == kernels.DIRICHLET else 0
-        j1 = n - 2 if self.bc_type[1] == kernels.DIRICHLET else n - 1
-        return j0, j1 - j0 + 1
+        j0, m = operator.unknown_range(self.grid.n_nodes, self.bc_type)
+        return int(j0), int(m)
 
     def fast_path_possible(self, cap: np.ndarray, n_forced: np.ndarray) -> bool:
         """The modal fast path applies: constant properties, every unknown node stores heat, one theta."""
@@ -252,56 +273,39 @@ class PreparedFD:
             these (the others are NaN), which saves time when calibrating on a few targets.
         """
         nc = props.n_candidates
-        if probe_depths is None:
-            probe_depths = self.probe_depth_matrix(n=nc)
         cap, g = assemble(self.grid, props)
         if not (np.isfinite(cap).all() and np.isfinite(g).all()) or (g <= 0).any() or (cap < 0).any():
             raise EngineError("candidate wall with non-positive or non-finite properties")
         theta, bc_theta, n_forced = self._thetas(cap, g)
-        pa, pb, pw = probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
+        pa, pb, pw = self._probe_weights(probe_depths, nc)
         possible = self.fast_path_possible(cap, n_forced)
         if path == "modal" and not possible:
             raise EngineError(
                 "the modal fast path needs constant conductivities, heat capacity at every "
-                "unknown node and no stiff links; use path='general'"
+                "unknown node and one theta on every link (none raised by the theta rule); use path='general'"
             )
         if path in ("auto", "modal") and possible:
             return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced, rows)
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        kind = np.broadcast_to(self.kind, g.shape).copy()
-        tref = np.broadcast_to(self.tref, g.shape).copy()
-        ts = np.broadcast_to(self.tab_start, g.shape).copy()
-        tl = np.broadcast_to(self.tab_len, g.shape).copy()
         bc_h = np.broadcast_to(self.bc_h, (nc, 2)).copy()
-        # one candidate: run on the calling thread (waking numba's worker threads costs more than it saves)
-        run = kernels.run_serial if nc == 1 else kernels.run_batch
-        out, energy, tend = run(
-            cap,
-            g,
-            theta,
-            kind,
-            coef,
-            tref,
-            ts,
-            tl,
-            self.tab_T,
-            self.tab_v,
-            self.nonlinear,
-            self.bc_type,
-            bc_h,
-            bc_theta,
-            self.ue,
-            self.ui,
-            self.dt,
-            self.out_step,
-            self.out_w,
-            pa,
-            pb,
-            pw,
-            tinit,
-            self.refactor_drift,
-        )
+        wall = (cap, g, theta)
+        laws = (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v)
+        faces = (self.bc_type, bc_h, bc_theta, self.ue, self.ui)
+        outputs = (self.out_step, self.out_w, pa, pb, pw)
+
+        def part(sl):
+            return kernels.run_batch(
+                tuple(a[sl] for a in wall),
+                laws[:1] + (coef[sl],) + laws[2:],
+                faces[:1] + (bc_h[sl], bc_theta[sl]) + faces[3:],
+                outputs[:2] + tuple(a[sl] for a in outputs[2:]),
+                self.dt,
+                self.refactor_drift,
+                tinit[sl],
+            )
+
+        out, energy, tend = in_threads(part, nc)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
     # ------------------------------------------------------------------ fast path
@@ -314,23 +318,15 @@ class PreparedFD:
         nc, n_nodes = cap.shape
         want = np.ones(pa.shape[1] + 2, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        run = modal.modal_serial if nc == 1 else modal.modal_batch
-        out, tend = run(
-            cap,
-            g,
-            pa,
-            pb,
-            pw,
-            self.bc_type,
-            self.bc_h,
-            self.theta,
-            self.dt,
-            self.ue,
-            self.ui,
-            self._output_plan(),
-            want,
-            t0,
-        )
+        plan = self._output_plan()
+
+        def part(sl):
+            return modal.modal_batch(
+                cap[sl], g[sl], pa[sl], pb[sl], pw[sl], self.bc_type, self.bc_h, self.theta, self.dt, self.ue,
+                self.ui, plan, want, t0[sl],
+            )  # fmt: skip
+
+        out, tend = in_threads(part, nc)
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         energy = np.full((nc, 3), np.nan)

@@ -1,76 +1,53 @@
-"""Numba kernels of the finite-volume engine. They see only arrays and scalars.
+"""Numba kernels of the finite-volume engine's general path. They see only arrays and scalars.
 
-The theta scheme on the unknown nodes ``T`` (Dirichlet faces are known) reads
+The theta scheme on the unknown nodes ``T`` (faces with an imposed temperature are known) reads
 
-    (Cap/dt + K_theta) T^{n+1} = (Cap/dt - K_{1-theta}) T^n + p1 u^{n+1} + p0 u^n
+    (Cap/dt + K_theta) T^{n+1} = (Cap/dt - K_{1-theta}) T^n + (face inputs)
 
-where ``K_theta = sum_l theta_l K_l`` sums the link conductance matrices
-weighted by each link's theta (1/2 for Crank-Nicolson, 1 for fully implicit,
-and 1 for links that touch a zero-capacity node or are too stiff for the time
-step, see :mod:`wallcal.engines.fd`), and ``u = (u_e, u_i)`` are the two
-boundary inputs. Every link flux is evaluated identically for the two nodes it
-joins, so the scheme conserves energy exactly; :func:`run_batch` reports the
-balance.
+where ``K_theta = sum_l theta_l K_l`` sums the link conductance matrices weighted by each link's
+theta (:func:`wallcal.engines.operator.link_thetas`), assembled by
+:func:`wallcal.engines.operator.assemble_operator`, with the faces' terms from
+:mod:`wallcal.engines.boundary`. Every link flux is evaluated identically for the two nodes it
+joins, so the scheme conserves energy exactly; :func:`run_batch` reports the balance.
 
 The loop is written as link fluxes: ``F_l = E_l + theta_l g0_l (T^{n+1}_a - T^{n+1}_b)`` with the
 explicit part ``E_l`` computed first, the right-hand side ``Cap/dt T^n + sum of E`` and one
-tridiagonal solve with a matrix factorised at conductances ``g0``: up to
-:data:`~wallcal.engines.pcr.PCR_MAX_ROWS` unknowns by parallel cyclic reduction held in vector
-registers (:mod:`wallcal.engines.pcr`), beyond by a lean twisted LU solve. For constant conductances
-the matrix is factorised once. For lambda(T) (see :func:`_run_one`) the conductances of the step
-``g*`` (Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the difference
-is applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised only when ``g*``
-drifts from ``g0``. The exponential law's Kirchhoff mean is evaluated as ``Gm sinh(x)/x`` with ``x =
-f (T_a - T_b) / 2`` and one factor per link at its mean temperature, ``Gm = g_ref exp(f ((T_a +
-T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))`` but without the division or the
-cancellation of ``E_a - E_b``. ``Gm`` is updated multiplicatively with a short polynomial of ``f
-dT_m`` (exact ``exp`` when a step changes a temperature a lot, and every 1024 steps); ``sinh(x)/x``
-is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``). While every link's arguments are
-small (checked at each exact step) the step takes shorter polynomials of the same precision
-(:data:`X_SHORT`, :data:`U_SHORT`); a link beyond their range sends its step to the exact branch.
+tridiagonal solve with a matrix factorised at conductances ``g0`` (a twisted LU: two chains from
+both ends, each taking two rows per multiply-add). For constant conductances the matrix is
+factorised once. For lambda(T) (see :func:`_run_one`) the conductances of the step ``g*``
+(Kirchhoff means at the extrapolated mid-step temperature) differ from ``g0``; the difference is
+applied explicitly to the predicted ``T^{n+1}``, and the matrix is refactorised only when ``g*``
+drifts from ``g0``. The exponential law's Kirchhoff mean is evaluated as ``Gm sinh(x)/x`` with
+``x = f (T_a - T_b) / 2`` and one factor per link at its mean temperature,
+``Gm = g_ref exp(f ((T_a + T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))`` but
+without the division or the cancellation of ``E_a - E_b``. ``Gm`` is updated multiplicatively with
+a polynomial of ``f dT_m`` (exact ``exp`` when a step changes a temperature a lot, and every 1024
+steps); ``sinh(x)/x`` is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``).
 
-Speed: the step loop of :func:`_run_one` is one numba function whose common path calls only small
-functions that LLVM inlines (the polynomials) and the solve by reduction (a real call, measured no
-slower than its intrinsic placed inline; a call, or numba's ``inline="always"``, passes array
-structs and adds refcount operations, which would spill the twisted solve's chains), compiled with
-FMA contraction only. Every pass over the links or nodes writes few arrays and reads few (at most
-about eight), which keeps LLVM's run-time aliasing checks under its limit so that the pass
-vectorises; a pass that needs more stays scalar and costs several times as much (so lambda(T) fuses
-g* with the explicit fluxes only for a uniform theta, and the explicit fluxes are not recomputed per
-node in the right-hand side pass). The solve by reduction is a few dozen vector instructions per
-level, no loop, emitted as LLVM IR (see :mod:`wallcal.engines.pcr`), half the time of the twisted
-solve in a stand-alone test. The twisted solve, the only serial work left for larger walls, runs two
-independent chains (top and bottom half) of m/2 rows each way, each chain taking two rows per
-multiply-add by recursive doubling (pair products precomputed at factorisation; the right-hand side
-is scaled by the pivots' inverses in the pass that forms it), with unsigned indices so that numba
-emits no negative-index wraparound. The time levels are shifted by one vectorised pass per step (for
-lambda(T) over zero-padded buffers, so that it has no scalar remainder) that also prepares the next
-lambda(T) step, instead of rotating array references (which costs refcounting in numba). Probe
-values are formed only at the steps whose outputs need them.
+Speed notes: each pass over the links or nodes reads and writes few arrays, which keeps LLVM's
+run-time aliasing checks under its limit so that the pass vectorises; the twisted solve is written
+out in the step loop with unsigned indices (a call would pass array structs and spill its chains).
+Probe values are formed only at the steps whose outputs need them.
 
-Boundary codes: 0 surface temperature (Dirichlet), 1 air temperature with a
-surface coefficient (Robin), 2 heat flux density (positive towards the interior).
-Conductivity codes per link: 0 constant, 1 exponential ``exp(f (T - T_ref))``,
-2 table (piecewise linear, normalised to 1 at the reference temperature).
+Conductivity laws per link: :data:`~wallcal.grid.LAMBDA_CONSTANT`, ``LAMBDA_EXPONENTIAL``
+(``exp(f (T - T_ref))``), ``LAMBDA_TABLE`` (piecewise linear, normalised to 1 at the reference
+temperature).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange, uint64
+from numba import njit, uint64
 
-from .pcr import PCR_MAX_LEVELS, PCR_MAX_ROWS, pcr_coefficients, pcr_solve, pcr_work
-
-DIRICHLET = 0
-ROBIN = 1
-FLUX = 2
+from ..grid import LAMBDA_CONSTANT, LAMBDA_EXPONENTIAL, LAMBDA_TABLE
+from . import boundary, operator
 
 
 @njit(cache=True)
 def _link_factor(kind, coef, tref, tab_start, tab_len, tab_T, tab_v, temp):
-    if kind == 0:
+    if kind == LAMBDA_CONSTANT:
         return 1.0
-    if kind == 1:
+    if kind == LAMBDA_EXPONENTIAL:
         return np.exp(coef * (temp - tref))
     # table, constant beyond its ends
     s = tab_start
@@ -87,74 +64,27 @@ def _link_factor(kind, coef, tref, tab_start, tab_len, tab_T, tab_v, temp):
 
 
 @njit(cache=True)
-def _assemble(cap, g, theta, bc_type, bc_h, bc_theta, dt, j0, m, Ad, Aoff, Bd, Boff, p):
-    """Fill the tridiagonal A and B and the input coefficients p[0:4] = (pe1, pe0, pi1, pi0)."""
-    n_links = g.shape[0]
-    for i in range(m):
-        Ad[i] = cap[j0 + i] / dt
-        Bd[i] = Ad[i]
-        Aoff[i] = 0.0
-        Boff[i] = 0.0
-    for k in range(4):
-        p[k] = 0.0
-    for lnk in range(n_links):
-        th = theta[lnk]
-        gl = g[lnk]
-        ia = lnk - j0
-        ib = lnk + 1 - j0
-        if 0 <= ia < m:
-            Ad[ia] += th * gl
-            Bd[ia] -= (1.0 - th) * gl
-        if 0 <= ib < m:
-            Ad[ib] += th * gl
-            Bd[ib] -= (1.0 - th) * gl
-        if 0 <= ia < m and 0 <= ib < m:
-            Aoff[ia] = -th * gl
-            Boff[ia] = (1.0 - th) * gl
-        if ia < 0 and ib < m:  # link from the known exterior node into unknown 0
-            p[0] = th * gl
-            p[1] = (1.0 - th) * gl
-        if ib >= m and ia >= 0:  # link from the last unknown to the known interior node
-            p[2] = th * gl
-            p[3] = (1.0 - th) * gl
-    # exterior face
-    if bc_type[0] == 1:
-        th = bc_theta[0]
-        Ad[0] += th * bc_h[0]
-        Bd[0] -= (1.0 - th) * bc_h[0]
-        p[0] = th * bc_h[0]
-        p[1] = (1.0 - th) * bc_h[0]
-    elif bc_type[0] == 2:
-        p[0] = bc_theta[0]
-        p[1] = 1.0 - bc_theta[0]
-    # interior face
-    if bc_type[1] == 1:
-        th = bc_theta[1]
-        Ad[m - 1] += th * bc_h[1]
-        Bd[m - 1] -= (1.0 - th) * bc_h[1]
-        p[2] = th * bc_h[1]
-        p[3] = (1.0 - th) * bc_h[1]
-    elif bc_type[1] == 2:  # q_i positive towards the interior leaves the wall
-        p[2] = -bc_theta[1]
-        p[3] = -(1.0 - bc_theta[1])
-
-
-@njit(cache=True)
-def _factor(Ad, Aoff, m, cp, inv):
-    """LU of the symmetric tridiagonal A (Thomas): stores c' and 1/pivot."""
-    inv[0] = 1.0 / Ad[0]
-    for i in range(1, m):
-        cp[i - 1] = Aoff[i - 1] * inv[i - 1]
-        inv[i] = 1.0 / (Ad[i] - Aoff[i - 1] * cp[i - 1])
-
-
-@njit(cache=True)
-def _solve(Aoff, cp, inv, rhs, x, m):
-    x[0] = rhs[0] * inv[0]
-    for i in range(1, m):
-        x[i] = (rhs[i] - Aoff[i - 1] * x[i - 1]) * inv[i]
-    for i in range(m - 2, -1, -1):
-        x[i] -= cp[i] * x[i + 1]
+def _table_mean(tab_start, tab_len, tab_T, tab_v, ta, tb):
+    """Mean of the normalised piecewise-linear table (constant beyond its ends) over [min, max] of ta and
+    tb: the exact integral, segment by segment between the table points inside the interval, over its
+    length (the Kirchhoff mean; Simpson's rule is not exact when a table point lies inside)."""
+    lo = min(ta, tb)
+    hi = max(ta, tb)
+    v_lo = _link_factor(LAMBDA_TABLE, 0.0, 0.0, tab_start, tab_len, tab_T, tab_v, lo)
+    if hi <= lo:
+        return v_lo
+    acc = 0.0
+    t_prev = lo
+    v_prev = v_lo
+    for k in range(tab_start, tab_start + tab_len):
+        t = tab_T[k]
+        if t > lo and t < hi:
+            acc += (t - t_prev) * 0.5 * (v_prev + tab_v[k])
+            t_prev = t
+            v_prev = tab_v[k]
+    v_hi = _link_factor(LAMBDA_TABLE, 0.0, 0.0, tab_start, tab_len, tab_T, tab_v, hi)
+    acc += (hi - t_prev) * 0.5 * (v_prev + v_hi)
+    return acc / (hi - lo)
 
 
 @njit(cache=True)
@@ -163,15 +93,15 @@ def _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, 
 
     That is the Kirchhoff-transform conductance (U(T_a) - U(T_b)) / (T_a - T_b) / dx with
     U = integral of lambda dT, which makes the discrete steady state exact at the nodes:
-    in closed form for the exponential law, by Simpson's rule for a table.
+    in closed form for the exponential law, exactly segment by segment for a table (:func:`_table_mean`).
     """
     for lnk in range(g.shape[0]):
         k = kind[lnk]
-        if k == 0:
+        if k == LAMBDA_CONSTANT:
             continue
         ta = Tfull[lnk]
         tb = Tfull[lnk + 1]
-        if k == 1:
+        if k == LAMBDA_EXPONENTIAL:
             f = coef[lnk]
             d = f * (ta - tb)
             if abs(d) > 1e-4:
@@ -179,42 +109,66 @@ def _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, 
             else:
                 fac = np.exp(f * (0.5 * (ta + tb) - tref[lnk])) * (1.0 + d * d / 24.0)
         else:
-            fa = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta)
-            fb = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, tb)
-            fm = _link_factor(k, coef[lnk], tref[lnk], tab_start[lnk], tab_len[lnk], tab_T, tab_v, 0.5 * (ta + tb))
-            fac = (fa + 4.0 * fm + fb) / 6.0
+            fac = _table_mean(tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta, tb)
         g[lnk] = g_ref[lnk] * fac
 
 
 @njit(cache=True)
-def _steady(
-    cap, g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, nonlinear, bc_type, bc_h, ue0, ui0, j0, m, Tfull
-):
-    """Steady state for the first boundary values (Picard iterations when lambda(T))."""
+def _factor_folded(a, b, m, sc, f1, f2):
+    """LU of the symmetric tridiagonal (a diagonal, b off-diagonal) with the pivots folded in:
+    sc = 1/pivot scales the right-hand side, f1_i = b_{i-1}/p_i (forward), f2_i = b_i/p_i (backward)."""
+    piv = a[0]
+    sc[0] = 1.0 / piv
+    f1[0] = 0.0
+    for i in range(1, m):
+        piv = a[i] - b[i - 1] * b[i - 1] / piv
+        sc[i] = 1.0 / piv
+        f1[i] = b[i - 1] * sc[i]
+    for i in range(m - 1):
+        f2[i] = b[i] * sc[i]
+    f2[m - 1] = 0.0
+
+
+@njit(cache=True)
+def _solve_folded(sc, f1, f2, x, m):
+    """Solve in place with the factors of :func:`_factor_folded` (x: right-hand side in, solution out)."""
+    x[0] *= sc[0]
+    for i in range(1, m):
+        x[i] = x[i] * sc[i] - f1[i] * x[i - 1]
+    for i in range(m - 2, -1, -1):
+        x[i] -= f2[i] * x[i + 1]
+
+
+@njit(cache=True)
+def _steady(cap, g, g_ref, laws, bc_type, bc_h, ue0, ui0, j0, m, Tfull):
+    """Steady state ``K T = p u`` for the first boundary values (Picard iterations when lambda(T)); writes
+    Tfull (every node) and leaves the conductances of the last iteration in g."""
+    kind, coef, tref, tab_start, tab_len, tab_T, tab_v = laws
     n_nodes = Tfull.shape[0]
+    nonlinear = False
+    for lnk in range(kind.shape[0]):
+        if kind[lnk] != LAMBDA_CONSTANT:
+            nonlinear = True
+    mm = max(m, 1)
+    diag = np.zeros(mm)
+    off = np.zeros(mm)
+    sc = np.zeros(mm)
+    f1 = np.zeros(mm)
+    f2 = np.zeros(mm)
+    x = np.zeros(mm)
     ones = np.ones(g.shape[0])
     one2 = np.ones(2)
-    zc = np.zeros(n_nodes)
-    Ad = np.zeros(max(m, 1))
-    Aoff = np.zeros(max(m, 1))
-    Bd = np.zeros(max(m, 1))
-    Boff = np.zeros(max(m, 1))
-    cp = np.zeros(max(m, 1))
-    inv = np.zeros(max(m, 1))
-    rhs = np.zeros(max(m, 1))
-    x = np.zeros(max(m, 1))
-    p = np.zeros(4)
-    # first guess: uniform at the mean of the temperature-like inputs
+    # first guess: uniform at the mean of the inputs that set the temperature level
     guess = 0.5 * (ue0 + ui0)
-    if bc_type[0] == 2:
+    if boundary.imposes_flux(bc_type[0]):
         guess = ui0
-    if bc_type[1] == 2:
+    if boundary.imposes_flux(bc_type[1]):
         guess = ue0
     for j in range(n_nodes):
         Tfull[j] = guess
-    if bc_type[0] == 0:
+    if boundary.is_known(bc_type[0]):
         Tfull[0] = ue0
-    if bc_type[1] == 0:
+    if boundary.is_known(bc_type[1]):
         Tfull[n_nodes - 1] = ui0
     n_iter = 60 if nonlinear else 1
     for _ in range(n_iter):
@@ -222,13 +176,14 @@ def _steady(
             _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, Tfull)
         if m == 0:
             break
-        _assemble(zc, g, ones, bc_type, bc_h, one2, 1.0, j0, m, Ad, Aoff, Bd, Boff, p)
+        pe, pi = operator.assemble_operator(g, ones, bc_type, bc_h, one2, j0, m, diag, off)
+        _factor_folded(diag, off, m, sc, f1, f2)
+        x[0] = 0.0
         for i in range(m):
-            rhs[i] = 0.0
-        rhs[0] += p[0] * ue0
-        rhs[m - 1] += p[2] * ui0
-        _factor(Ad, Aoff, m, cp, inv)
-        _solve(Aoff, cp, inv, rhs, x, m)
+            x[i] = 0.0
+        x[0] += pe * ue0
+        x[m - 1] += pi * ui0
+        _solve_folded(sc, f1, f2, x, m)
         change = 0.0
         for i in range(m):
             change = max(change, abs(x[i] - Tfull[j0 + i]))
@@ -255,9 +210,8 @@ def _face_flux(F, j, n_steps, u, is_flux_bc):
 
 
 @njit(cache=True)
-def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, f1, f2, lu):
-    """Twisted ("burn at both ends") LU of A0 = Cap/dt + K_theta(g0) over the unknowns (only the
-    matrix, in a and b, when ``lu`` is false: the solve by reduction needs no LU).
+def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, f1, f2):
+    """Twisted ("burn at both ends") LU of A0 = Cap/dt + K_theta(g0) over the unknowns.
 
     Rows above the twist k = m // 2 are eliminated downwards (pivots p), rows below it upwards
     (pivots q), so that a solve runs two independent dependency chains of length m/2 instead of
@@ -268,21 +222,9 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, 
     passed in so that the refactorisations of a lambda(T) run do not allocate.)
     """
     k = m // 2
+    operator.assemble_operator(g0, theta, bc_type, bc_h, bc_theta, j0, m, a, b)
     for i in range(m):
-        j = j0 + i
-        diag = cap[j] / dt
-        if j >= 1:
-            diag += theta[j - 1] * g0[j - 1]
-        if j < g0.shape[0]:
-            diag += theta[j] * g0[j]
-        a[i] = diag
-        b[i] = -theta[j] * g0[j] if i < m - 1 else 0.0
-    if bc_type[0] == 1:
-        a[0] += bc_theta[0] * bc_h[0]
-    if bc_type[1] == 1:
-        a[m - 1] += bc_theta[1] * bc_h[1]
-    if not lu:
-        return
+        a[i] += cap[j0 + i] / dt
     for i in range(k):  # downwards
         piv = a[i]
         if i > 0:
@@ -357,24 +299,6 @@ def _sinhc(u):
 
 SINHC_U_MAX = 0.0625  # |x| <= 0.25, i.e. |f (T_a - T_b)| <= 0.5
 
-# Ranges of the short polynomials of a lambda(T) step (_step_conductance_short). On the bundled
-# example with f = 0.0046 /K on four layers and 1-minute steps, a step changes a link factor's
-# argument by |f dT_m| <= 1.4e-3 (~1e-4 typically) and the links have x^2 <= 6e-5
-X_SHORT = 0.002  # |f dT_m| <= X_SHORT: exp by its degree-4 polynomial, relative error < 3e-16
-U_SHORT = 1e-3  # x^2 <= U_SHORT: sinh(x)/x by its degree-6 polynomial, relative error < 3e-18
-
-
-@njit(cache=True, fastmath=True)
-def _exp_short(x):
-    """exp(x) for |x| <= X_SHORT (degree-4 Taylor polynomial, relative error < 3e-16)."""
-    return 1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0))))
-
-
-@njit(cache=True, fastmath=True)
-def _sinhc_short(u):
-    """sinh(x) / x for u = x^2 <= U_SHORT (degree 6 in x, relative error < 3e-18)."""
-    return 1.0 + u * (1.0 / 6.0 + u * (1.0 / 120.0 + u * (1.0 / 5040.0)))
-
 
 @njit(cache=True)
 def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm):
@@ -396,13 +320,10 @@ def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab
     if not has_table:
         return
     for lnk in range(n_links):
-        if kind[lnk] == 2:
+        if kind[lnk] == LAMBDA_TABLE:
             ta = Tmid[lnk]
             tb = Tmid[lnk + 1]
-            fa = _link_factor(2, 0.0, 0.0, tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta)
-            fb = _link_factor(2, 0.0, 0.0, tab_start[lnk], tab_len[lnk], tab_T, tab_v, tb)
-            fm = _link_factor(2, 0.0, 0.0, tab_start[lnk], tab_len[lnk], tab_T, tab_v, 0.5 * (ta + tb))
-            gs[lnk] = g_ref[lnk] * (fa + 4.0 * fm + fb) / 6.0
+            gs[lnk] = g_ref[lnk] * _table_mean(tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta, tb)
 
 
 @njit(cache=True)
@@ -419,32 +340,6 @@ def _step_conductance(f, dtm_a, dtm_b, gm, tm_a, tm_b):
 
 
 @njit(cache=True)
-def _step_conductance_short(f, dtm_a, dtm_b, gm, tm_a, tm_b):
-    """:func:`_step_conductance` with the short polynomials: 1 when either argument is beyond their
-    ranges (X_SHORT, U_SHORT), else 0. Used while every link is well inside them (:func:`_short_ok`)."""
-    x = f * (0.5 * (dtm_a + dtm_b))
-    gm = gm * _exp_short(x)
-    d = f * (tm_a - tm_b)
-    u = 0.25 * d * d
-    return gm, gm * _sinhc_short(u), 1 if (u > U_SHORT) | (abs(x) > X_SHORT) else 0
-
-
-@njit(cache=True)
-def _short_ok(coef, Tmid, has_table):
-    """Whether every link's ``x^2`` (:func:`_nonlinear_conductances`) is below a quarter of
-    ``U_SHORT``: the steps that follow then take the short polynomials (a link that leaves their
-    range sends its step to the exact branch, and the run back to the long polynomials). Never
-    with table laws, whose every step takes the exact branch."""
-    if has_table:
-        return False
-    for lnk in range(coef.shape[0]):
-        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
-        if 0.25 * d * d > 0.25 * U_SHORT:
-            return False
-    return True
-
-
-@njit(cache=True)
 def _drift_limits(cap, theta, dt, bc_type, lim):
     """The part of the drift tolerance that does not depend on ``g0`` (see :func:`_set_factorised`):
     0.05 / (theta dt (1/c_a + 1/c_b)) (known face nodes count as infinite capacity; inf for a link
@@ -452,8 +347,8 @@ def _drift_limits(cap, theta, dt, bc_type, lim):
     n_links = lim.shape[0]
     n_nodes = cap.shape[0]
     for lnk in range(n_links):
-        known_a = lnk == 0 and bc_type[0] == 0
-        known_b = lnk + 1 == n_nodes - 1 and bc_type[1] == 0
+        known_a = lnk == 0 and boundary.is_known(bc_type[0])
+        known_b = lnk + 1 == n_nodes - 1 and boundary.is_known(bc_type[1])
         if (cap[lnk] <= 0.0 and not known_a) or (cap[lnk + 1] <= 0.0 and not known_b):
             lim[lnk] = 0.0
             continue
@@ -476,34 +371,7 @@ def _set_factorised(g0, gs, theta, drift, lim, thg, tol):
 
 
 @njit(cache=True, fastmath={"contract"})
-def _run_one(
-    cap,
-    g_ref,
-    theta,
-    kind,
-    coef,
-    tref,
-    tab_start,
-    tab_len,
-    tab_T,
-    tab_v,
-    nonlinear,
-    bc_type,
-    bc_h,
-    bc_theta,
-    ue,
-    ui,
-    dt,
-    out_step,
-    out_w,
-    pa,
-    pb,
-    pw,
-    out,
-    energy,
-    Tinit,
-    drift,
-):
+def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
     """One candidate of :func:`run_batch`.
 
     Each link's flux over a step is ``F_l = E_l + theta_l g0_l (T^{n+1}_a - T^{n+1}_b)``, applied with
@@ -523,21 +391,27 @@ def _run_one(
     rare branch (exact factors / closed form / table laws, refactorisation) and, when every link has
     the same theta, the explicit fluxes ``E`` without storing ``g*`` (else ``g*`` is stored and ``E``
     formed by a second pass, as after a rare branch); the right-hand side, scaled for the solve; the
-    solve (by reduction in vector registers, or written out: two chains, two rows per multiply-add);
+    solve (written out: two chains, two rows per multiply-add);
     the scalar face fluxes, probes (only when an output needs them) and
     outputs; one pass over the nodes that shifts ``T^n <- T^{n+1}`` and, for lambda(T), prepares the
     next step: mid-step temperature, its change (from which the next step's first pass updates the
     link factors ``Gm``) and the predictor written into ``Tnew``.
     """
+    cap, g_ref, theta = wall
+    kind, coef, tref, tab_start, tab_len, tab_T, tab_v = laws
+    bc_type, bc_h, bc_theta, ue, ui = faces
+    out_step, out_w, pa, pb, pw = outputs
     n_nodes = cap.shape[0]
     n_links = g_ref.shape[0]
     n_steps = ue.shape[0] - 1
-    dir_e = bc_type[0] == DIRICHLET
-    dir_i = bc_type[1] == DIRICHLET
-    j0 = 1 if dir_e else 0
-    j1 = n_nodes - 2 if dir_i else n_nodes - 1
-    m = j1 - j0 + 1
+    dir_e = boundary.is_known(bc_type[0])
+    dir_i = boundary.is_known(bc_type[1])
+    j0, m = operator.unknown_range(n_nodes, bc_type)
     mm = max(m, 1)
+    nonlinear = False
+    for lnk in range(n_links):
+        if kind[lnk] != LAMBDA_CONSTANT:
+            nonlinear = True
     g0 = g_ref.copy()  # conductances of the factorised matrix
     gs = g_ref.copy()  # conductances of the current step (lambda(T))
     thg = np.empty(n_links)  # theta g0: implicit part of the factorised link conductances
@@ -549,17 +423,7 @@ def _run_one(
     f2 = np.zeros(mm)
     wa = np.zeros(mm)
     wb = np.zeros(mm)
-    # the solve: parallel cyclic reduction in vector registers up to PCR_MAX_ROWS unknowns (pcr.py),
-    # the twisted scalar solve beyond
-    use_pcr = 0 < m <= PCR_MAX_ROWS
-    n_regs = (m + 7) // 8 if use_pcr else 1
-    n_r = 8 * n_regs
-    rhs = np.zeros(max(mm, n_r))  # zero-padded to whole registers
-    r_al = np.zeros(PCR_MAX_LEVELS * n_r)  # per-level coefficients of the reduction
-    r_ga = np.zeros(PCR_MAX_LEVELS * n_r)
-    r_w = np.zeros(n_r)
-    r_work = pcr_work(mm)
-    n_lev = 0  # levels of the reduction
+    rhs = np.zeros(mm)
     sc = np.ones(mm)  # scale of the right-hand side rows (twisted solve: 1/pivot, 1/gamma at the twist row)
     S = np.zeros(4 * mm)  # packed per-row coefficients of the twisted solve (_solve_coefficients)
     k = m // 2  # twist row of the factorisation
@@ -570,7 +434,7 @@ def _run_one(
     # scalar or narrower remainder loop (multiples of 4 measured ~5 % slower)
     n_pad = (n_links // 8 + 1) * 8
     TnB = np.zeros(n_pad + 1)
-    TnewB = np.zeros(max(n_pad + 1, j0 + n_r))  # room for the reduction's padded solution written at Tu
+    TnewB = np.zeros(n_pad + 1)
     TmidB = np.zeros(n_pad + 1)
     DB = np.zeros(n_pad + 1)  # change of the mid-step temperature over the last step (lambda(T))
     GmB = np.zeros(n_pad)
@@ -586,11 +450,10 @@ def _run_one(
     om0 = 1.0 - th0
     uniform_theta = True  # one theta for every link (the fused lambda(T) pass)
     n_big = 0  # link factor updates beyond the polynomial's range (lambda(T))
-    short = False  # lambda(T): the fused pass takes the short polynomials
     for lnk in range(n_links):
         omth[lnk] = 1.0 - theta[lnk]
         thg[lnk] = theta[lnk] * g0[lnk]
-        if kind[lnk] == 2:
+        if kind[lnk] == LAMBDA_TABLE:
             has_table = True
         if theta[lnk] != th0:
             uniform_theta = False
@@ -606,26 +469,7 @@ def _run_one(
         if dir_i:
             Tn[n_nodes - 1] = ui[0]
     else:
-        _steady(
-            cap,
-            g0,
-            g_ref,
-            kind,
-            coef,
-            tref,
-            tab_start,
-            tab_len,
-            tab_T,
-            tab_v,
-            nonlinear,
-            bc_type,
-            bc_h,
-            ue[0],
-            ui[0],
-            j0,
-            m,
-            Tn,
-        )
+        _steady(cap, g0, g_ref, laws, bc_type, bc_h, ue[0], ui[0], j0, m, Tn)
     e_start = 0.0
     for j in range(n_nodes):
         Tnew[j] = Tn[j]  # predictor of the first step: T^0
@@ -636,17 +480,13 @@ def _run_one(
         _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm)
         _drift_limits(cap, theta, dt, bc_type, lim)
         _set_factorised(g0, gs, theta, drift, lim, thg, tol)
-        short = _short_ok(coef, Tmid, has_table)
     # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
     gex = np.empty(n_links)
     for lnk in range(n_links):
         gex[lnk] = omth[lnk] * g0[lnk]
     if m > 0:
-        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not use_pcr)
-        if use_pcr:
-            n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
-        else:
-            _solve_coefficients(inv, f1, f2, k, m, sc, S)
+        _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
+        _solve_coefficients(inv, f1, f2, k, m, sc, S)
 
     e_in = 0.0
     e_out = 0.0
@@ -656,8 +496,8 @@ def _run_one(
     P = np.zeros((4, n_pr))
     Fe = np.zeros(4)
     Fi = np.zeros(4)
-    flux_e = bc_type[0] == FLUX
-    flux_i = bc_type[1] == FLUX
+    imposed_e = boundary.imposes_flux(bc_type[0])  # a heat-flux face reports its imposed value
+    imposed_i = boundary.imposes_flux(bc_type[1])
     the = bc_theta[0]
     thi = bc_theta[1]
     for q in range(n_pr):
@@ -683,18 +523,7 @@ def _run_one(
                 # the explicit fluxes E too, without storing g*; the rare branches (exact factors,
                 # table laws, refactorisation) store g* and form E afterwards.
                 n_drift = 0
-                if uniform_theta and short:  # the short polynomials (see _short_ok)
-                    for lnk in range(n_links):
-                        gmk, gk, big = _step_conductance_short(
-                            coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
-                        )
-                        Gm[lnk] = gmk
-                        n_big += big
-                        g0k = g0[lnk]
-                        n_drift += 1 if abs(gk - g0k) > tol[lnk] else 0
-                        dp = Tnew[lnk] - Tnew[lnk + 1]
-                        Epad[lnk + 1] = gk * (th0 * dp + om0 * (Tn[lnk] - Tn[lnk + 1])) - (th0 * g0k) * dp
-                elif uniform_theta:
+                if uniform_theta:
                     for lnk in range(n_links):
                         gmk, gk, big = _step_conductance(
                             coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
@@ -717,7 +546,6 @@ def _run_one(
                         n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
                     fresh = True
-                    short = n_big == 0 and _short_ok(coef, Tmid, has_table)
                     _exact_factors(coef, tref, g_ref, Tmid, Gm)
                     _nonlinear_conductances(
                         gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm
@@ -733,11 +561,8 @@ def _run_one(
                         gs[lnk] = Gm[lnk] * _sinhc(0.25 * d * d)
                 if n_drift > 0 and m > 0:
                     _set_factorised(g0, gs, theta, drift, lim, thg, tol)
-                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2, not use_pcr)
-                    if use_pcr:
-                        n_lev = pcr_coefficients(wa, wb, m, n_regs, r_al, r_ga, r_w, r_work)
-                    else:
-                        _solve_coefficients(inv, f1, f2, k, m, sc, S)
+                    _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
+                    _solve_coefficients(inv, f1, f2, k, m, sc, S)
             if fresh:
                 for lnk in range(n_links):
                     dp = Tnew[lnk] - Tnew[lnk + 1]
@@ -746,119 +571,103 @@ def _run_one(
             for lnk in range(n_links):
                 Epad[lnk + 1] = gex[lnk] * (Tn[lnk] - Tn[lnk + 1])
         if m > 0:
-            # right-hand side, scaled for the solve (sc: the pivots' inverses of the twisted solve, 1 for the reduction)
+            # right-hand side, scaled for the solve (sc: the pivots' inverses of the twisted solve)
             for i in range(m):
                 j = j0 + i
                 rhs[i] = (cdt[j] * Tn[j] + Epad[j] - Epad[j + 1]) * sc[i]
-            if dir_e:
-                rhs[0] += thg[0] * ue[n + 1] * sc[0]
-            elif bc_type[0] == ROBIN:
-                rhs[0] += bc_h[0] * (the * ue[n + 1] + (1.0 - the) * (ue[n] - Tn[0])) * sc[0]
-            else:
-                rhs[0] += (the * ue[n + 1] + (1.0 - the) * ue[n]) * sc[0]
-            if dir_i:
-                rhs[m - 1] += thg[n_links - 1] * ui[n + 1] * sc[m - 1]
-            elif bc_type[1] == ROBIN:
-                rhs[m - 1] += bc_h[1] * (thi * ui[n + 1] + (1.0 - thi) * (ui[n] - Tn[n_nodes - 1])) * sc[m - 1]
-            else:
-                rhs[m - 1] -= (thi * ui[n + 1] + (1.0 - thi) * ui[n]) * sc[m - 1]
-            if use_pcr:
-                # solve A0 x = rhs by parallel cyclic reduction in vector registers (pcr.py)
-                # (straight into Tnew: the padding rows' zeros land on the interior face and beyond,
-                # inside Tnew's padded buffer; a known interior face is set again)
-                pcr_solve(n_regs, rhs, r_al, r_ga, r_w, Tu, n_lev)
-                if dir_i:
-                    Tnew[n_nodes - 1] = ui[n + 1]
-            else:
-                # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
-                # chains (top and bottom half), interleaved, the running values in registers, each taking
-                # two rows per multiply-add by recursive doubling (pair products c1, c2, packed with f1, f2
-                # per row in S by _solve_coefficients): y_{t+1} = (r_{t+1} - f1_{t+1} r_t) + c1_{t+1} y_{t-1},
-                # the row between off the chain. Written out here (a call, or numba's inline="always",
-                # costs refcount operations and spills on the chain each step); needs FMA contraction.
-                # Every index is unsigned (uint64(...)), which spares numba's negative-index wraparound
-                # (a sign test and two integer instructions per access).
-                # Elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
-                # y_i = r_i - f1_i y_{i-1} (top), y_i = r_i - f1_i y_{i+1} (bottom), r = rhs / pivot
-                yt = rhs[0]
-                yb = rhs[m - 1]
-                Tu[0] = yt
-                Tu[m - 1] = yb
-                n_pair = max((nb - 1) // 2, 0)
-                for p in range(n_pair):
-                    i0 = uint64(1 + 2 * p)  # top rows i0, i1 = i0 + 1
-                    i1 = uint64(2 + 2 * p)
-                    r0 = rhs[i0]
-                    ytn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yt
-                    Tu[i0] = r0 - S[uint64(4 * i0)] * yt
-                    Tu[i1] = ytn
-                    yt = ytn
-                    i0 = uint64(m - 2 - 2 * p)  # bottom rows i0, i1 = i0 - 1
-                    i1 = uint64(m - 3 - 2 * p)
-                    r0 = rhs[i0]
-                    ybn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yb
-                    Tu[i0] = r0 - S[uint64(4 * i0)] * yb
-                    Tu[i1] = ybn
-                    yb = ybn
-                for t in range(1 + 2 * n_pair, k):  # rows left in the top half (at most 2)
-                    i0 = uint64(t)
-                    yt = rhs[i0] - S[uint64(4 * i0)] * yt
-                    Tu[i0] = yt
-                for t in range(m - 2 - 2 * n_pair, k, -1):  # row left in the bottom half (at most 1)
-                    i0 = uint64(t)
-                    yb = rhs[i0] - S[uint64(4 * i0)] * yb
-                    Tu[i0] = yb
-                # twist row (its right-hand side and couplings pre-scaled by 1/gamma), from the chains'
-                # last values still in registers
-                xk = rhs[k]
-                if k > 0:
-                    xk -= S[4 * k + 1] * yt
-                if k < m - 1:
-                    xk -= S[4 * k + 3] * yb
-                Tu[k] = xk
-                # substitution away from the twist: x_i = y_i - f2_i x_{i+1} (top), x_i = y_i - f2_i x_{i-1}
-                # (bottom), also two rows per multiply-add on the chains
-                xt = xk
-                xb = xk
-                n_pair = nb // 2
-                for p in range(n_pair):
-                    i0 = uint64(k - 1 - 2 * p)  # top rows i0, i1 = i0 - 1
-                    i1 = uint64(k - 2 - 2 * p)
-                    y0 = Tu[i0]
-                    xtn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xt
-                    Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xt
-                    Tu[i1] = xtn
-                    xt = xtn
-                    i0 = uint64(k + 1 + 2 * p)  # bottom rows i0, i1 = i0 + 1
-                    i1 = uint64(k + 2 + 2 * p)
-                    y0 = Tu[i0]
-                    xbn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xb
-                    Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xb
-                    Tu[i1] = xbn
-                    xb = xbn
-                for t in range(k - 1 - 2 * n_pair, -1, -1):  # rows left in the top half (at most 2)
-                    i0 = uint64(t)
-                    xt = Tu[i0] - S[uint64(4 * i0 + 2)] * xt
-                    Tu[i0] = xt
-                for t in range(k + 1 + 2 * n_pair, m):  # row left in the bottom half (at most 1)
-                    i0 = uint64(t)
-                    xb = Tu[i0] - S[uint64(4 * i0 + 2)] * xb
-                    Tu[i0] = xb
+            rhs[0] += boundary.step_input(bc_type[0], bc_h[0], the, 1.0, ue[n + 1], ue[n], Tn[0], thg[0]) * sc[0]
+            rhs[m - 1] += (
+                boundary.step_input(bc_type[1], bc_h[1], thi, -1.0, ui[n + 1], ui[n], Tn[n_nodes - 1], thg[n_links - 1])
+                * sc[m - 1]
+            )
+            # solve A0 x = rhs with the twisted factors of _factor_lean: two independent dependency
+            # chains (top and bottom half), interleaved, the running values in registers, each taking
+            # two rows per multiply-add by recursive doubling (pair products c1, c2, packed with f1, f2
+            # per row in S by _solve_coefficients): y_{t+1} = (r_{t+1} - f1_{t+1} r_t) + c1_{t+1} y_{t-1},
+            # the row between off the chain. Written out here (a call, or numba's inline="always",
+            # costs refcount operations and spills on the chain each step); needs FMA contraction.
+            # Every index is unsigned (uint64(...)), which spares numba's negative-index wraparound
+            # (a sign test and two integer instructions per access).
+            # Elimination towards the twist (rows 0..k-1 downwards, rows m-1..k+1 upwards):
+            # y_i = r_i - f1_i y_{i-1} (top), y_i = r_i - f1_i y_{i+1} (bottom), r = rhs / pivot
+            yt = rhs[0]
+            yb = rhs[m - 1]
+            Tu[0] = yt
+            Tu[m - 1] = yb
+            n_pair = max((nb - 1) // 2, 0)
+            for p in range(n_pair):
+                i0 = uint64(1 + 2 * p)  # top rows i0, i1 = i0 + 1
+                i1 = uint64(2 + 2 * p)
+                r0 = rhs[i0]
+                ytn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yt
+                Tu[i0] = r0 - S[uint64(4 * i0)] * yt
+                Tu[i1] = ytn
+                yt = ytn
+                i0 = uint64(m - 2 - 2 * p)  # bottom rows i0, i1 = i0 - 1
+                i1 = uint64(m - 3 - 2 * p)
+                r0 = rhs[i0]
+                ybn = (rhs[i1] - S[uint64(4 * i1)] * r0) + S[uint64(4 * i1 + 1)] * yb
+                Tu[i0] = r0 - S[uint64(4 * i0)] * yb
+                Tu[i1] = ybn
+                yb = ybn
+            for t in range(1 + 2 * n_pair, k):  # rows left in the top half (at most 2)
+                i0 = uint64(t)
+                yt = rhs[i0] - S[uint64(4 * i0)] * yt
+                Tu[i0] = yt
+            for t in range(m - 2 - 2 * n_pair, k, -1):  # row left in the bottom half (at most 1)
+                i0 = uint64(t)
+                yb = rhs[i0] - S[uint64(4 * i0)] * yb
+                Tu[i0] = yb
+            # twist row (its right-hand side and couplings pre-scaled by 1/gamma), from the chains'
+            # last values still in registers
+            xk = rhs[k]
+            if k > 0:
+                xk -= S[4 * k + 1] * yt
+            if k < m - 1:
+                xk -= S[4 * k + 3] * yb
+            Tu[k] = xk
+            # substitution away from the twist: x_i = y_i - f2_i x_{i+1} (top), x_i = y_i - f2_i x_{i-1}
+            # (bottom), also two rows per multiply-add on the chains
+            xt = xk
+            xb = xk
+            n_pair = nb // 2
+            for p in range(n_pair):
+                i0 = uint64(k - 1 - 2 * p)  # top rows i0, i1 = i0 - 1
+                i1 = uint64(k - 2 - 2 * p)
+                y0 = Tu[i0]
+                xtn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xt
+                Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xt
+                Tu[i1] = xtn
+                xt = xtn
+                i0 = uint64(k + 1 + 2 * p)  # bottom rows i0, i1 = i0 + 1
+                i1 = uint64(k + 2 + 2 * p)
+                y0 = Tu[i0]
+                xbn = (Tu[i1] - S[uint64(4 * i1 + 2)] * y0) + S[uint64(4 * i1 + 3)] * xb
+                Tu[i0] = y0 - S[uint64(4 * i0 + 2)] * xb
+                Tu[i1] = xbn
+                xb = xbn
+            for t in range(k - 1 - 2 * n_pair, -1, -1):  # rows left in the top half (at most 2)
+                i0 = uint64(t)
+                xt = Tu[i0] - S[uint64(4 * i0 + 2)] * xt
+                Tu[i0] = xt
+            for t in range(k + 1 + 2 * n_pair, m):  # row left in the bottom half (at most 1)
+                i0 = uint64(t)
+                xb = Tu[i0] - S[uint64(4 * i0 + 2)] * xb
+                Tu[i0] = xb
         # step-average face fluxes F^{n+1/2} (the scheme's own link fluxes: energy is conserved exactly)
-        if dir_e:
-            fe = Epad[1] + thg[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0])
-        elif bc_type[0] == ROBIN:
-            fe = bc_h[0] * (the * (ue[n + 1] - Tnew[0]) + (1.0 - the) * (ue[n] - Tn[0]))
-        else:
-            fe = the * ue[n + 1] + (1.0 - the) * ue[n]
-        if dir_i:
-            lk = n_links - 1
-            fi = Epad[lk + 1] + thg[lk] * (Tnew[lk] - Tnew[lk + 1])
-            fi -= cdt[n_nodes - 1] * (Tnew[n_nodes - 1] - Tn[n_nodes - 1])
-        elif bc_type[1] == ROBIN:
-            fi = bc_h[1] * (thi * (Tnew[n_nodes - 1] - ui[n + 1]) + (1.0 - thi) * (Tn[n_nodes - 1] - ui[n]))
-        else:
-            fi = thi * ui[n + 1] + (1.0 - thi) * ui[n]
+        lk = n_links - 1
+        half_e = Epad[1] + thg[0] * (Tnew[0] - Tnew[1]) + cdt[0] * (Tnew[0] - Tn[0]) if dir_e else 0.0
+        half_i = (
+            Epad[lk + 1]
+            + thg[lk] * (Tnew[lk] - Tnew[lk + 1])
+            - cdt[n_nodes - 1] * (Tnew[n_nodes - 1] - Tn[n_nodes - 1])
+            if dir_i
+            else 0.0
+        )
+        fe = boundary.step_flux(bc_type[0], bc_h[0], the, 1.0, ue[n + 1], ue[n], Tnew[0], Tn[0], half_e)
+        fi = boundary.step_flux(
+            bc_type[1], bc_h[1], thi, -1.0, ui[n + 1], ui[n], Tnew[n_nodes - 1], Tn[n_nodes - 1], half_i
+        )
         e_in += dt * fe
         e_out += dt * fi
         Fe[n & 3] = fe
@@ -870,7 +679,7 @@ def _run_one(
                 P[row, q] = (1.0 - pw[q]) * Tnew[pa[q]] + pw[q] * Tnew[pb[q]]
         # outputs between grid nk and nk + 1 are complete once F^{nk+3/2} is known (nk = n - 1)
         while k_out < n_out and out_step[k_out] <= n - 1:
-            _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out)
+            _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, imposed_e, imposed_i, out)
             k_out += 1
         # next time level: T^n <- T^{n+1}; for lambda(T) also the next step's mid-step temperature
         # 1.5 T^{n+1} - 0.5 T^n, its change, and the predictor 2 T^{n+1} - T^n (into Tnew)
@@ -890,7 +699,7 @@ def _run_one(
             for j in range(n_nodes):
                 Tn[j] = Tnew[j]
     while k_out < n_out:  # outputs in the last step
-        _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out)
+        _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, imposed_e, imposed_i, out)
         k_out += 1
     e_end = 0.0
     for j in range(n_nodes):
@@ -902,61 +711,59 @@ def _run_one(
 
 
 @njit(cache=True)
-def _output(k, nk, w, P, Fe, Fi, n_steps, ue, ui, flux_e, flux_i, out):
+def _output(k, nk, w, P, Fe, Fi, n_steps, ue, ui, imposed_e, imposed_i, out):
     n_pr = P.shape[1]
     for q in range(n_pr):
         out[q, k] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
-    out[n_pr, k] = (1.0 - w) * _face_flux(Fe, nk, n_steps, ue, flux_e) + w * _face_flux(Fe, nk + 1, n_steps, ue, flux_e)
-    out[n_pr + 1, k] = (1.0 - w) * _face_flux(Fi, nk, n_steps, ui, flux_i) + w * _face_flux(
-        Fi, nk + 1, n_steps, ui, flux_i
+    out[n_pr, k] = (1.0 - w) * _face_flux(Fe, nk, n_steps, ue, imposed_e) + w * _face_flux(
+        Fe, nk + 1, n_steps, ue, imposed_e
+    )
+    out[n_pr + 1, k] = (1.0 - w) * _face_flux(Fi, nk, n_steps, ui, imposed_i) + w * _face_flux(
+        Fi, nk + 1, n_steps, ui, imposed_i
     )
 
 
-@njit(parallel=True, cache=True)
-def run_batch(
-    cap,
-    g_ref,
-    theta,
-    kind,
-    coef,
-    tref,
-    tab_start,
-    tab_len,
-    tab_T,
-    tab_v,
-    nonlinear,
-    bc_type,
-    bc_h,
-    bc_theta,
-    ue,
-    ui,
-    dt,
-    out_step,
-    out_w,
-    pa,
-    pb,
-    pw,
-    Tinit,
-    drift=0.02,
-):
-    """Run every candidate wall of a batch.
+@njit(cache=True)
+def _candidate(c, wall, laws, faces, outputs):
+    """The arguments of :func:`_run_one` for candidate c of a batch (see :func:`run_batch`)."""
+    cap, g_ref, theta = wall
+    kind, coef, tref, tab_start, tab_len, tab_T, tab_v = laws
+    bc_type, bc_h, bc_theta, ue, ui = faces
+    out_step, out_w, pa, pb, pw = outputs
+    return (
+        (cap[c], g_ref[c], theta[c]),
+        (kind, coef[c], tref, tab_start, tab_len, tab_T, tab_v),
+        (bc_type, bc_h[c], bc_theta[c], ue, ui),
+        (out_step, out_w, pa[c], pb[c], pw[c]),
+    )
+
+
+@njit(cache=True)
+def _allocate(wall, outputs):
+    cap = wall[0]
+    nc = cap.shape[0]
+    out = np.full((nc, outputs[2].shape[1] + 2, outputs[0].shape[0]), np.nan)
+    return out, np.zeros((nc, 3)), np.zeros(cap.shape)
+
+
+@njit(cache=True, nogil=True)
+def run_batch(wall, laws, faces, outputs, dt, drift, Tinit):
+    """Run every candidate wall of a batch. Releases the GIL: a caller runs parts of a batch in threads
+    (:func:`wallcal.engines.fd.in_threads`).
 
     Parameters (c = candidate, j = node, l = link, k = output time, p = probe)
     ----------
-    cap : (c, j) node heat capacities [J/(m2K)]
-    g_ref : (c, l) link conductances at the reference temperature [W/(m2K)]
-    theta : (c, l) theta of each link [-]
-    kind, coef, tref, tab_start, tab_len : (c, l) conductivity law per link
-    tab_T, tab_v : concatenated normalised lambda(T) tables
-    nonlinear : bool
-    bc_type : (2,) boundary codes; bc_h : (c, 2) surface coefficients [W/(m2K)];
-    bc_theta : (c, 2) theta of the boundary terms
-    ue, ui : (n_steps + 1,) boundary inputs [degC or W/m2]
+    wall : (cap (c, j) node heat capacities [J/(m2K)], g_ref (c, l) link conductances at the reference
+        temperature [W/(m2K)], theta (c, l) theta of each link [-])
+    laws : (kind (l,), coef (c, l), tref (l,), tab_start (l,), tab_len (l,), tab_T, tab_v): the conductivity
+        law of each link (codes of :mod:`wallcal.grid`; tab_T, tab_v the concatenated normalised tables)
+    faces : (bc_type (2,) codes of :mod:`wallcal.engines.boundary`, bc_h (c, 2) surface coefficients
+        [W/(m2K)], bc_theta (c, 2) theta of the face terms, ue, ui (n_steps + 1,) inputs [degC or W/m2])
+    outputs : (out_step, out_w (k,): output time = grid time out_step + out_w; pa, pb, pw (c, p): probe
+        interpolation)
     dt : time step [s]
-    out_step, out_w : (k,) output time = grid (out_step + out_w); out_step -1 never used
-    pa, pb, pw : (c, p) probe interpolation
-    Tinit : (c, j) initial node temperatures, or shape (c, 0) for the steady start
     drift : relative drift of a lambda(T) conductance that triggers a refactorisation (0: every step)
+    Tinit : (c, j) initial node temperatures, or shape (c, 0) for the steady start
 
     Returns
     -------
@@ -964,137 +771,8 @@ def run_batch(
     energy : (c, 3) stored-energy change, energy in at the exterior, energy out at the interior [J/m2]
     Tend : (c, j) final node temperatures [degC]
     """
-    nc = cap.shape[0]
-    n_q = pa.shape[1] + 2
-    out = np.full((nc, n_q, out_step.shape[0]), np.nan)
-    energy = np.zeros((nc, 3))
-    Tend = np.zeros(cap.shape)
-    for c in prange(nc):
-        Tend[c] = _run_one(
-            cap[c],
-            g_ref[c],
-            theta[c],
-            kind[c],
-            coef[c],
-            tref[c],
-            tab_start[c],
-            tab_len[c],
-            tab_T,
-            tab_v,
-            nonlinear,
-            bc_type,
-            bc_h[c],
-            bc_theta[c],
-            ue,
-            ui,
-            dt,
-            out_step,
-            out_w,
-            pa[c],
-            pb[c],
-            pw[c],
-            out[c],
-            energy[c],
-            Tinit[c],
-            drift,
-        )
+    out, energy, Tend = _allocate(wall, outputs)
+    for c in range(out.shape[0]):
+        w, lw, fc, op = _candidate(c, wall, laws, faces, outputs)
+        Tend[c] = _run_one(w, lw, fc, op, dt, drift, Tinit[c], out[c], energy[c])
     return out, energy, Tend
-
-
-@njit(cache=True)
-def run_serial(
-    cap,
-    g_ref,
-    theta,
-    kind,
-    coef,
-    tref,
-    tab_start,
-    tab_len,
-    tab_T,
-    tab_v,
-    nonlinear,
-    bc_type,
-    bc_h,
-    bc_theta,
-    ue,
-    ui,
-    dt,
-    out_step,
-    out_w,
-    pa,
-    pb,
-    pw,
-    Tinit,
-    drift=0.02,
-):
-    """:func:`run_batch` on the calling thread (small batches: no thread wake-up latency)."""
-    nc = cap.shape[0]
-    n_q = pa.shape[1] + 2
-    out = np.full((nc, n_q, out_step.shape[0]), np.nan)
-    energy = np.zeros((nc, 3))
-    Tend = np.zeros(cap.shape)
-    for c in range(nc):
-        Tend[c] = _run_one(
-            cap[c],
-            g_ref[c],
-            theta[c],
-            kind[c],
-            coef[c],
-            tref[c],
-            tab_start[c],
-            tab_len[c],
-            tab_T,
-            tab_v,
-            nonlinear,
-            bc_type,
-            bc_h[c],
-            bc_theta[c],
-            ue,
-            ui,
-            dt,
-            out_step,
-            out_w,
-            pa[c],
-            pb[c],
-            pw[c],
-            out[c],
-            energy[c],
-            Tinit[c],
-            drift,
-        )
-    return out, energy, Tend
-
-
-@njit(cache=True)
-def link_thetas(cap, g, theta0, dt, stiff_limit, known_e, known_i):
-    """theta per link and per boundary term, and the number of links made fully implicit.
-
-    A link is fully implicit when it touches an unknown node without heat capacity, or when
-    ``g dt (1/c_a + 1/c_b) > stiff_limit`` (known face nodes count as infinite capacity); a
-    boundary term is fully implicit when its face node has no capacity. Only for theta0 < 1.
-    """
-    nc, n_nodes = cap.shape
-    n_links = g.shape[1]
-    theta = np.full((nc, n_links), theta0)
-    bc_theta = np.full((nc, 2), theta0)
-    n_forced = np.zeros(nc, dtype=np.int64)
-    inv_c = np.empty(n_nodes)
-    for c in range(nc):
-        for j in range(n_nodes):
-            inv_c[j] = 1.0 / cap[c, j] if cap[c, j] > 0.0 else np.inf
-        if known_e:
-            inv_c[0] = 0.0
-        if known_i:
-            inv_c[n_nodes - 1] = 0.0
-        if theta0 < 1.0:
-            for lnk in range(n_links):
-                pair = g[c, lnk] * dt * (inv_c[lnk] + inv_c[lnk + 1])
-                if not np.isfinite(pair) or pair > stiff_limit:
-                    theta[c, lnk] = 1.0
-                    n_forced[c] += 1
-        if not np.isfinite(inv_c[0]):
-            bc_theta[c, 0] = 1.0
-        if not np.isfinite(inv_c[n_nodes - 1]):
-            bc_theta[c, 1] = 1.0
-    return theta, bc_theta, n_forced

@@ -37,7 +37,7 @@ combines two) and are computed once per candidate.
 An output then costs one multiply-add per mode and requested row, fused into
 the pass over the modes that steps on to the next anchor.
 
-Per candidate (everything inside the numba batch loop, in parallel over candidates):
+Per candidate (everything inside the numba batch loop; a batch is split over threads by the caller):
 
 1. ``K``, ``p`` and the output rows are assembled from the node capacities, the
    link conductances and the probe interpolation weights (no Python per candidate).
@@ -46,11 +46,11 @@ Per candidate (everything inside the numba batch loop, in parallel over candidat
    rotations are applied only to the few rows of the eigenvector matrix the
    outputs need (both ends, the probes' nodes) and recorded, so that the initial
    and final states can be mapped with them. O(m^2) instead of the O(m^3) of a
-   dense ``eigh``, and no LAPACK/BLAS call (no threads of its own inside numba's).
+   dense ``eigh``, and no LAPACK/BLAS call (no threads of its own inside ours).
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
    over the steps: between two anchors five steps apart (5-minute data at
    1-minute steps), one loop over the modes forms the anchor's output rows and
-   steps five times (:func:`_dots_step5`, :func:`_dots3_step5`); otherwise the rows are formed
+   steps five times (:func:`_dots_step5`); otherwise the rows are formed
    (:func:`_form`) and the state is stepped four steps per pass (:func:`_advance`).
    Memory does not depend on the number of steps.
 """
@@ -60,7 +60,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
+
+from . import boundary, operator
 
 #: columns of the per-output input features (see :func:`output_plan`)
 N_FEAT = 6
@@ -115,8 +117,10 @@ def tridiag_ql(d, e, zt, rot_i, rot_cs):
                 n_new = 2 * rot_i.shape[0] + m
                 ri = np.empty(n_new, dtype=np.int64)
                 rc = np.empty((n_new, 2))
-                ri[:nrot] = rot_i[:nrot]
-                rc[:nrot] = rot_cs[:nrot]
+                for t in range(nrot):  # (loops: a slice copy compiles numba's shape-error formatting)
+                    ri[t] = rot_i[t]
+                    rc[t, 0] = rot_cs[t, 0]
+                    rc[t, 1] = rot_cs[t, 1]
                 rot_i = ri
                 rot_cs = rc
             while i >= lo:
@@ -322,18 +326,7 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     n_nodes = cap.shape[0]
     n_links = g.shape[0]
     npr = pa.shape[0]
-    for i in range(m):
-        kd[i] = 0.0
-        ko[i] = 0.0
-    for lnk in range(n_links):
-        ia = lnk - j0
-        ib = ia + 1
-        if 0 <= ia < m:
-            kd[ia] += g[lnk]
-        if 0 <= ib < m:
-            kd[ib] += g[lnk]
-        if 0 <= ia and ib < m:
-            ko[ia] = -g[lnk]
+    pe, pi = operator.assemble_operator(g, np.ones(n_links), bc_type, bc_h, np.ones(2), j0, m, kd, ko)
     G_nodes[:, :] = 0.0
     D[:, :] = 0.0
     # probes: node a with 1 - w, node b with w; a known face node enters through its input
@@ -346,36 +339,19 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
                 D[q, 0] += wgt
             else:
                 D[q, 1] += wgt
-    qe = npr
-    qi = npr + 1
-    # exterior face: q_e = g_01 (T_0 - T_1) + c_0 dT_0/dt, h (T_air - T_s), or the imposed flux
-    if bc_type[0] == 0:
-        pe = g[0]
-        D[qe, 2] = g[0]
-        G_nodes[qe, 0] = -g[0]
-        D[qe, 4] = cap[0]
-    elif bc_type[0] == 1:
-        kd[0] += bc_h[0]
-        pe = bc_h[0]
-        D[qe, 2] = bc_h[0]
-        G_nodes[qe, 0] = -bc_h[0]
-    else:
-        pe = 1.0
-        D[qe, 0] = 1.0
-    # interior face (positive towards the interior)
-    if bc_type[1] == 0:
-        pi = g[n_links - 1]
-        G_nodes[qi, m - 1] = g[n_links - 1]
-        D[qi, 3] = -g[n_links - 1]
-        D[qi, 5] = -cap[n_nodes - 1]
-    elif bc_type[1] == 1:
-        kd[m - 1] += bc_h[1]
-        pi = bc_h[1]
-        G_nodes[qi, m - 1] = bc_h[1]
-        D[qi, 3] = -bc_h[1]
-    else:
-        pi = -1.0
-        D[qi, 1] = 1.0
+    # face fluxes (positive towards the interior): a T_face + b u + c du/dt + d u_interp (boundary.flux_row);
+    # feature columns of u_e: 0 interpolated, 2 two-step average, 4 rate; of u_i: 1, 3, 5
+    for f in range(2):
+        q = npr + f
+        side = 1.0 if f == 0 else -1.0
+        i = 0 if f == 0 else m - 1
+        a, b, c, d = boundary.flux_row(
+            bc_type[f], bc_h[f], g[0 if f == 0 else n_links - 1], cap[0 if f == 0 else n_nodes - 1], side
+        )
+        G_nodes[q, i] += a
+        D[q, 2 + f] = b
+        D[q, 4 + f] = c
+        D[q, f] = d
     return pe, pi
 
 
@@ -467,34 +443,6 @@ def _dots_step5(y, mu, al, s, n, gf):
 
 
 @njit(cache=True, fastmath=True, inline="always")
-def _dots3_step5(y, mu, al, s, n, gf):
-    """:func:`_dots_step5` for at most three requested rows (a calibration's usual targets).
-
-    A deliberate copy with three accumulators: the row count must be fixed at compile time for the
-    loop to vectorise with its accumulators in registers, and two rows fewer make the kernel of a
-    three-target calibration ~10 % faster (interleaved A/B of the two kernels, bundled example)."""
-    m = y.shape[0]
-    a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
-    b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
-    d0 = 0.0
-    d1 = 0.0
-    d2 = 0.0
-    for k in range(m):
-        zk = y[k]
-        d0 += gf[0, k] * zk
-        d1 += gf[1, k] * zk
-        d2 += gf[2, k] * zk
-        u = mu[k]
-        f = al[k]
-        zk = u * zk + (f * a0 + b0)
-        zk = u * zk + (f * a1 + b1)
-        zk = u * zk + (f * a2 + b2)
-        zk = u * zk + (f * a3 + b3)
-        y[k] = u * zk + (f * a4 + b4)
-    return d0, d1, d2
-
-
-@njit(cache=True, fastmath=True, inline="always")
 def _form(k_out, y, Gs, rq, opat, ow, out):
     """The state part of output k_out from the state at its anchor: a dot product per requested
     row and pattern (the input terms are added by :func:`_input_terms`)."""
@@ -541,182 +489,40 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
 
 
 @njit(cache=True, fastmath=True)
-def _modal_one(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, out, t0, tend):
-    """One candidate (see module docstring). Writes ``out`` (n_q, k) and ``tend`` (n_nodes,).
-
-    ``want`` (n_q,) bool: the output rows to form (others are left NaN); fewer rows need fewer
-    eigenvector components and less work per output time.
-    """
-    base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
-    n_nodes = cap.shape[0]
-    j0 = 1 if bc_type[0] == 0 else 0
-    m = (n_nodes - 1 if bc_type[1] == 0 else n_nodes) - j0
-    npr = pa.shape[0]
-    n_q = npr + 2
-    n_steps = ue.shape[0] - 1
-    kd = np.empty(m)
-    ko = np.empty(m)
-    G_nodes = np.empty((n_q, m))
-    D = np.empty((n_q, N_FEAT))
-    pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
-    n_rq = 0
-    for q in range(n_q):
-        if want[q]:
-            n_rq += 1
-        else:
-            for i in range(m):
-                G_nodes[q, i] = 0.0
-    rq = np.empty(n_rq, dtype=np.int64)
-    fq = np.full(N_FUSED, n_q, dtype=np.int64)  # fused rows, padded with the zero row n_q
-    n_rq = 0
-    for q in range(n_q):
-        if want[q]:
-            rq[n_rq] = q
-            if n_rq < N_FUSED:
-                fq[n_rq] = q
-            n_rq += 1
-        else:
-            out[q, :] = np.nan
-    # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
-    dinv = np.empty(m)
-    for i in range(m):
-        dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
-    lam = np.empty(m)
-    ee = np.zeros(m)
-    for i in range(m):
-        lam[i] = kd[i] * dinv[i] * dinv[i]
-    for i in range(m - 1):
-        ee[i] = ko[i] * dinv[i] * dinv[i + 1]
-    # unknowns whose eigenvector components are needed: both ends and the probes' nodes
-    col = np.full(m, -1, dtype=np.int64)
-    col[0] = 0
-    r = 1
-    for i in range(1, m):
-        need = i == m - 1
-        for q in range(n_q):
-            if G_nodes[q, i] != 0.0:
-                need = True
-        if need:
-            col[i] = r
-            r += 1
-    zt = np.zeros((m, r))
-    for i in range(m):
-        if col[i] >= 0:
-            zt[i, col[i]] = 1.0
-    rot_i = np.empty(2 * m * m, dtype=np.int64)
-    rot_cs = np.empty((2 * m * m, 2))
-    nrot, rot_i, rot_cs = tridiag_ql(lam, ee, zt, rot_i, rot_cs)
-    if nrot < 0:
-        out[:, :] = np.nan
-        tend[:] = np.nan
-        return
-    # modal coefficients; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
-    mu = np.empty(m)
-    r0 = np.empty(m)
-    r1 = np.empty(m)
-    z = np.empty(m)  # modal state
-    ce = col[0]
-    ci = col[m - 1]
-    for k in range(m):
-        den = 1.0 / dt + theta * lam[k]
-        mu[k] = (1.0 / dt - (1.0 - theta) * lam[k]) / den
-        a0 = dinv[0] * zt[k, ce] * pe
-        a1 = dinv[m - 1] * zt[k, ci] * pi
-        r0[k] = a0 / den
-        r1[k] = a1 / den
-        # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
-        z[k] = (a0 * ue[0] + a1 * ui[0]) / lam[k]
-    if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T)
-        for i in range(m):
-            z[i] = t0[j0 + i] / dinv[i]
-        apply_wt(nrot, rot_i, rot_cs, z)
-    # output rows in modal coordinates: G = G_nodes V
-    G = np.zeros((n_q, m))
-    for q in range(n_q):
-        for i in range(m):
-            h = G_nodes[q, i]
-            if h != 0.0:
-                h *= dinv[i]
-                c = col[i]
-                for k in range(m):
-                    G[q, k] += h * zt[k, c]
-    # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
-    # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
-    # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
-    rmax = 0.0
-    for k in range(m):
-        rmax = max(rmax, abs(r0[k]), abs(r1[k]))
-    tiny = 1e-150 * rmax if rmax > 0.0 else 1e-150
-    rho = np.empty(m)
-    al = np.empty(m)
-    y = np.empty(m)
-    for k in range(m):
-        rk = r1[k]
-        if abs(rk) < tiny:
-            rk = tiny
-        rho[k] = rk
-        al[k] = r0[k] / rk
-        y[k] = z[k] / rk
-    # per output pattern: Gs = G P(mu) rho over the scaled state and H (row n_q stays zero: the
-    # padding of the fused rows)
-    n_pat = wp.shape[0]
-    Gs = np.zeros((n_pat, n_q + 1, m))
-    H = np.zeros((n_pat, n_q + 1, 6))
-    _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H)
-    # the fused rows of the main pattern, extracted once (a view per output would cost reference
-    # counting in the loop; other patterns go through _form)
-    pm0 = pmain[0]
-    gf = np.empty((N_FUSED, m))  # one array: LLVM checks its rows against the state as one object
-    for i in range(N_FUSED):
-        gf[i] = Gs[pm0, fq[i]]
-    # one pass over the steps, stopping at each anchor
+def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_steps):
+    """The pass over the steps of one candidate, stopping at each output's anchor (see the module
+    docstring): the hot loop, in one function compiled with fastmath and its steps inlined (the
+    candidate's set-up around it needs neither, and compiles faster without)."""
     n_out = base.shape[0]
-    cur = 0
+    cur = np.int64(0)
     k_out = 0
-    while k_out < n_out:
-        b = base[k_out]
+    while True:  # (each step function has one call site: they are inlined)
+        b = base[k_out] if k_out < n_out else np.int64(n_steps)
         _advance(y, mu, al, s, cur, b)
         cur = b
+        if k_out >= n_out:
+            break
         k2 = k_out + 1
         while k2 < n_out and base[k2] == b:
             k2 += 1
-        for kk in range(k_out, k2 - 1):  # several outputs on one anchor (rare)
-            _form(kk, y, Gs, rq, opat, ow, out)
         last = k2 - 1
         nxt = base[k2] if k2 < n_out else n_steps
-        if nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED:
+        fused = nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED
+        for kk in range(k_out, k2 - 1 if fused else k2):  # outputs formed by dot products
+            _form(kk, y, Gs, rq, opat, ow, out)
+        if fused:  # the last output of the anchor and five steps on, in one pass over the modes
             w0 = ow[last, 0]
-            if n_rq <= 3:
-                d3 = _dots3_step5(y, mu, al, s, b, gf)
-                for i in range(n_rq):
-                    out[fq[i], last] = w0 * d3[i]
-            else:
-                d5 = _dots_step5(y, mu, al, s, b, gf)
-                for i in range(n_rq):
-                    out[fq[i], last] = w0 * d5[i]
+            d5 = _dots_step5(y, mu, al, s, b, gf)
+            for i in range(n_rq):
+                out[fq[i], last] = w0 * d5[i]
             cur = b + 5
-        else:
-            _form(last, y, Gs, rq, opat, ow, out)
         k_out = k2
-    _advance(y, mu, al, s, cur, n_steps)
-    _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
-    for k in range(m):
-        z[k] = rho[k] * y[k]
-    # final temperatures T = V z = Cap^-1/2 W z
-    apply_w(nrot, rot_i, rot_cs, z)
-    for i in range(n_nodes):
-        tend[i] = 0.0
-    for i in range(m):
-        tend[j0 + i] = dinv[i] * z[i]
-    if j0 == 1:
-        tend[0] = ue[n_steps]
-    if bc_type[1] == 0:
-        tend[n_nodes - 1] = ui[n_steps]
 
 
-@njit(parallel=True, cache=True)
-def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
-    """Run every candidate through its modal recursion (see module docstring).
+@njit(cache=True, nogil=True)
+def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s):
+    """Run every candidate through its modal recursion (see module docstring). Releases the GIL: a
+    caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`).
 
     Parameters (c = candidate, j = node, l = link, p = probe, k = output time)
     ----------
@@ -730,25 +536,156 @@ def modal_batch(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want
     t0 : (c, j) initial node temperatures, or shape (c, 0) for the steady state of the first inputs
 
     Returns out (c, p + 2, k) and the final node temperatures (c, j) (known face nodes included).
+    ``want`` (p + 2,) bool: the output rows to form (others are left NaN); fewer rows need fewer
+    eigenvector components and less work per output time. (One function with the candidate loop
+    around the body: each level of njit calls re-optimises its callees, so a wrapper costs compile time.)
     """
-    nc = cap.shape[0]
-    out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
-    tend = np.empty(cap.shape)
-    for c in prange(nc):
-        _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
-        )
-    return out, tend
-
-
-@njit(cache=True)
-def modal_serial(cap, g, pa, pb, pw, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0):
-    """:func:`modal_batch` on the calling thread (small batches: no thread wake-up latency)."""
-    nc = cap.shape[0]
-    out = np.empty((nc, pa.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
-    tend = np.empty(cap.shape)
-    for c in range(nc):
-        _modal_one(
-            cap[c], g[c], pa[c], pb[c], pw[c], bc_type, bc_h, theta, dt, ue, ui, plan, want, out[c], t0[c], tend[c]
-        )
-    return out, tend
+    outs = np.empty((caps.shape[0], pas.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
+    tends = np.empty(caps.shape)
+    for cand in range(caps.shape[0]):
+        cap = caps[cand]
+        g = gs[cand]
+        pa = pas[cand]
+        pb = pbs[cand]
+        pw = pws[cand]
+        t0 = t0s[cand]
+        out = outs[cand]
+        tend = tends[cand]
+        base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
+        n_nodes = cap.shape[0]
+        j0, m = operator.unknown_range(n_nodes, bc_type)
+        npr = pa.shape[0]
+        n_q = npr + 2
+        n_steps = ue.shape[0] - 1
+        kd = np.empty(m)
+        ko = np.empty(m)
+        G_nodes = np.empty((n_q, m))
+        D = np.empty((n_q, N_FEAT))
+        pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
+        n_rq = 0
+        for q in range(n_q):
+            if want[q]:
+                n_rq += 1
+            else:
+                for i in range(m):
+                    G_nodes[q, i] = 0.0
+        rq = np.empty(n_rq, dtype=np.int64)
+        fq = np.full(N_FUSED, n_q, dtype=np.int64)  # fused rows, padded with the zero row n_q
+        n_rq = 0
+        for q in range(n_q):
+            if want[q]:
+                rq[n_rq] = q
+                if n_rq < N_FUSED:
+                    fq[n_rq] = q
+                n_rq += 1
+            else:
+                out[q, :] = np.nan
+        # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
+        dinv = np.empty(m)
+        for i in range(m):
+            dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
+        lam = np.empty(m)
+        ee = np.zeros(m)
+        for i in range(m):
+            lam[i] = kd[i] * dinv[i] * dinv[i]
+        for i in range(m - 1):
+            ee[i] = ko[i] * dinv[i] * dinv[i + 1]
+        # unknowns whose eigenvector components are needed: both ends and the probes' nodes
+        col = np.full(m, -1, dtype=np.int64)
+        col[0] = 0
+        r = 1
+        for i in range(1, m):
+            need = i == m - 1
+            for q in range(n_q):
+                if G_nodes[q, i] != 0.0:
+                    need = True
+            if need:
+                col[i] = r
+                r += 1
+        zt = np.zeros((m, r))
+        for i in range(m):
+            if col[i] >= 0:
+                zt[i, col[i]] = 1.0
+        rot_i = np.empty(2 * m * m, dtype=np.int64)
+        rot_cs = np.empty((2 * m * m, 2))
+        nrot, rot_i, rot_cs = tridiag_ql(lam, ee, zt, rot_i, rot_cs)
+        if nrot < 0:
+            out[:, :] = np.nan
+            tend[:] = np.nan
+            continue
+        # modal coefficients; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
+        mu = np.empty(m)
+        r0 = np.empty(m)
+        r1 = np.empty(m)
+        z = np.empty(m)  # modal state
+        ce = col[0]
+        ci = col[m - 1]
+        for k in range(m):
+            den = 1.0 / dt + theta * lam[k]
+            mu[k] = (1.0 / dt - (1.0 - theta) * lam[k]) / den
+            a0 = dinv[0] * zt[k, ce] * pe
+            a1 = dinv[m - 1] * zt[k, ci] * pi
+            r0[k] = a0 / den
+            r1[k] = a1 / den
+            # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
+            z[k] = (a0 * ue[0] + a1 * ui[0]) / lam[k]
+        if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T)
+            for i in range(m):
+                z[i] = t0[j0 + i] / dinv[i]
+            apply_wt(nrot, rot_i, rot_cs, z)
+        # output rows in modal coordinates: G = G_nodes V
+        G = np.zeros((n_q, m))
+        for q in range(n_q):
+            for i in range(m):
+                h = G_nodes[q, i]
+                if h != 0.0:
+                    h *= dinv[i]
+                    c = col[i]
+                    for k in range(m):
+                        G[q, k] += h * zt[k, c]
+        # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
+        # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
+        # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
+        rmax = 0.0
+        for k in range(m):
+            rmax = max(rmax, abs(r0[k]), abs(r1[k]))
+        tiny = 1e-150 * rmax if rmax > 0.0 else 1e-150
+        rho = np.empty(m)
+        al = np.empty(m)
+        y = np.empty(m)
+        for k in range(m):
+            rk = r1[k]
+            if abs(rk) < tiny:
+                rk = tiny
+            rho[k] = rk
+            al[k] = r0[k] / rk
+            y[k] = z[k] / rk
+        # per output pattern: Gs = G P(mu) rho over the scaled state and H (row n_q stays zero: the
+        # padding of the fused rows)
+        n_pat = wp.shape[0]
+        Gs = np.zeros((n_pat, n_q + 1, m))
+        H = np.zeros((n_pat, n_q + 1, 6))
+        _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H)
+        # the fused rows of the main pattern, extracted once (a view per output would cost reference
+        # counting in the loop; other patterns go through _form)
+        pm0 = pmain[0]
+        gf = np.empty((N_FUSED, m))  # one array: LLVM checks its rows against the state as one object
+        for i in range(N_FUSED):
+            for k in range(m):
+                gf[i, k] = Gs[pm0, fq[i], k]
+        # one pass over the steps, stopping at each anchor
+        _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_steps)
+        _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
+        for k in range(m):
+            z[k] = rho[k] * y[k]
+        # final temperatures T = V z = Cap^-1/2 W z
+        apply_w(nrot, rot_i, rot_cs, z)
+        for i in range(n_nodes):
+            tend[i] = 0.0
+        for i in range(m):
+            tend[j0 + i] = dinv[i] * z[i]
+        if j0 == 1:
+            tend[0] = ue[n_steps]
+        if boundary.is_known(bc_type[1]):
+            tend[n_nodes - 1] = ui[n_steps]
+    return outs, tends

@@ -26,8 +26,9 @@ Nodes ``j`` at depths ``x_j``, links ``l`` between nodes ``l`` and ``l + 1``.
   ``h (theta_b (u^{n+1} - T^{n+1}) + (1 - theta_b)(u^n - T^n))`` (air temperature) or
   ``theta_b q^{n+1} + (1 - theta_b) q^n`` (heat flux; minus at the interior face).
 - ``theta_l = theta`` (1/2 or 1) except 1 on links that touch a node without heat
-  capacity or have ``g dt (1/c_a + 1/c_b) > stiff_limit`` (a face node with an imposed
-  temperature counts as infinite capacity); ``theta_b = 1`` when the face node has no capacity.
+  capacity, and raised to ``1 - (1 - theta) L / s`` on links whose stiffer node has a stiffness
+  ``s = dt (sum of its conductances) / c`` above ``L = 1 / (1 - theta)`` (the discrete maximum
+  principle; see :func:`link_thetas`); the same for an air face's term.
 - lambda(T): ``g*_l`` is the Kirchhoff mean of lambda over ``[T_{l+1}, T_l]`` at the
   extrapolated mid-step temperature ``1.5 T^n - 0.5 T^{n-1}``; the matrix is kept at
   ``g0`` and ``E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l``
@@ -211,7 +212,7 @@ class ReferenceEngine(Engine):
 
     The scheme is the input's ``scheme`` (``"cn"`` or ``"implicit"``); a study run with
     ``engine = "fd-reference"`` gets Crank-Nicolson (:func:`wallcal.engines.scheme_of`).
-    Options read from ``SimulationInput.options``: ``stiff_limit`` (default 10),
+    Options read from ``SimulationInput.options``: ``stiff_limit`` (default None: ``1 / (1 - theta)``),
     ``refactor_drift`` (default 0.02), ``grid_time_step`` (build the grid for another step).
     """
 
@@ -315,7 +316,8 @@ class ReferenceEngine(Engine):
         known[0] = ext.type == "surface_temperature"
         known[-1] = intr.type == "surface_temperature"
 
-        theta, bc_theta = link_thetas(cap, g_ref, known, theta0, dt, stiff_limit)
+        face_h = [b.surface_coefficient if b.type == "air_temperature" else 0.0 for b in (ext, intr)]
+        theta, bc_theta = link_thetas(cap, g_ref, known, face_h, theta0, dt, stiff_limit)
         implicit_links = int(np.sum(theta != theta0))
         nonlinear = any(lk.kind == "layer" and wall.layers[lk.layer].is_temperature_dependent for lk in disc.links)
         # drift tolerance of a lambda(T) step (see module docstring); 0 on links touching a node without capacity
@@ -445,30 +447,58 @@ class ReferenceEngine(Engine):
         if inp.scheme not in SCHEME_THETA:
             raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
         theta0 = SCHEME_THETA[inp.scheme]
-        stiff_limit = float(inp.options.stiff_limit)
+        stiff_limit = inp.options.stiff_limit
         drift = float(inp.options.refactor_drift)
         return theta0, stiff_limit, drift
 
 
 # ---------------------------------------------------------------------------- pieces of the scheme
-def link_thetas(cap, g, known, theta0, dt, stiff_limit):
-    """theta of every link and of the two face terms (see module docstring)."""
+def link_thetas(cap, g, known, face_h, theta0, dt, stiff_limit=None):
+    """theta of every link and of the two face terms (see module docstring): the discrete maximum principle.
+
+    Node stiffness ``s_j = dt (sum of the conductances at node j, face term included) / c_j`` (0 for a node
+    whose temperature is imposed, infinite for a node without capacity). A term whose stiffest node has
+    ``(1 - theta0) s > (1 - theta0) L`` gets ``theta = 1 - (1 - theta0) L / s`` (1 for infinite s), with
+    ``L = stiff_limit`` or ``1 / (1 - theta0)``; the others keep theta0. A face term counts when the face
+    has a surface coefficient ``face_h`` > 0 or its node has no capacity.
+    """
     n_nodes = len(cap)
-    inv_c = np.empty(n_nodes)
+    theta = np.full(len(g), float(theta0))
+    bc_theta = np.full(2, float(theta0))
+    if theta0 >= 1.0:
+        return theta, bc_theta
+    limit = 1.0 / (1.0 - theta0) if stiff_limit is None else float(stiff_limit)
+    budget = (1.0 - theta0) * limit
+    s = np.empty(n_nodes)
     for j in range(n_nodes):
+        total = 0.0
+        if j > 0:
+            total += g[j - 1]
+        if j < n_nodes - 1:
+            total += g[j]
+        if j == 0:
+            total += face_h[0]
+        if j == n_nodes - 1:
+            total += face_h[1]
         if known[j]:
-            inv_c[j] = 0.0  # an imposed temperature: infinite capacity
+            s[j] = 0.0
         elif cap[j] > 0:
-            inv_c[j] = 1.0 / cap[j]
+            s[j] = dt * total / cap[j]
         else:
-            inv_c[j] = np.inf
-    theta = np.full(len(g), theta0)
-    if theta0 < 1.0:
-        for k in range(len(g)):
-            pair = g[k] * dt * (inv_c[k] + inv_c[k + 1])
-            if not np.isfinite(pair) or pair > stiff_limit:
-                theta[k] = 1.0
-    bc_theta = np.array([1.0 if np.isinf(inv_c[0]) else theta0, 1.0 if np.isinf(inv_c[n_nodes - 1]) else theta0])
+            s[j] = np.inf
+
+    def raised(sj):
+        if not np.isfinite(sj):
+            return 1.0
+        if (1.0 - theta0) * sj > budget:
+            return 1.0 - budget / sj
+        return float(theta0)
+
+    for k in range(len(g)):
+        theta[k] = raised(max(s[k], s[k + 1]))
+    for f, j in ((0, 0), (1, n_nodes - 1)):
+        if face_h[f] > 0 or not np.isfinite(s[j]):
+            bc_theta[f] = raised(s[j])
     return theta, bc_theta
 
 

@@ -29,43 +29,47 @@ def slowest_time_constant(wall: Wall, n_cells: int = 400) -> float:
     ----------
     wall : Wall
     n_cells : int
-        Number of finite-volume cells used to compute it.
+        About this many intervals, shared among the massive layers by thickness (at least 2 each).
 
     Returns
     -------
     float
-        1 / (smallest eigenvalue of C^-1 K) [s]; 0 for a wall without mass.
+        1 / (smallest eigenvalue of Cap^-1 K) [s] on the fd engine's grid and operator
+        (:func:`wallcal.engines.operator.assemble_operator`); 0 for a wall without mass.
     """
-    from scipy.linalg import eigh
+    from scipy.linalg import eigh_tridiagonal
 
-    # resistances and capacities of a fine finite-volume chain, nodes at cell centres
-    total = sum(layer.thickness for layer in wall.layers if not layer.is_massless) or 1.0
-    res, cap = [], []  # res[i]: resistance between node i-1 and i (with faces), cap[i]
-    pending = 0.0
-    for layer in wall.layers:
-        if layer.is_massless or layer.thickness <= 0:
-            pending += layer.resistance
-        else:
-            m = max(2, int(round(n_cells * layer.thickness / total)))
-            dx = layer.thickness / m
-            lam = float(layer.conductivity_at(layer.reference_temperature))
-            for j in range(m):
-                res.append(pending + (dx / 2 if j == 0 else dx) / lam)
-                cap.append(layer.volumetric_heat_capacity * dx)
-                pending = 0.0
-            pending = dx / 2 / lam
-        pending += layer.contact_resistance
-    if not cap:
+    from ...grid import PropertyArrays, assemble, build_grid
+    from .. import boundary
+    from ..operator import assemble_operator, unknown_range
+
+    total = sum(layer.thickness for layer in wall.layers if not layer.is_massless)
+    if total <= 0.0:
         return 0.0
-    res.append(pending)
-    g = 1.0 / np.asarray(res)
-    n = len(cap)
-    k = np.zeros((n, n))
-    for i in range(n):
-        k[i, i] = g[i] + g[i + 1]
-        if i + 1 < n:
-            k[i, i + 1] = k[i + 1, i] = -g[i + 1]
-    lam_min = eigh(k, np.diag(cap), eigvals_only=True, subset_by_index=[0, 0])[0]
+    intervals = [0 if L.is_massless else max(2, round(n_cells * L.thickness / total)) for L in wall.layers]
+    grid = build_grid(wall, 1.0, 1.0, intervals=intervals)
+    cap, g = (a[0] for a in assemble(grid, PropertyArrays.from_walls([wall])))
+    # nodes without capacity (between two no-mass layers) are eliminated: their links act in series
+    keep_c, keep_g = [cap[0]], []
+    r = 0.0
+    for lnk in range(len(g)):
+        r += 1.0 / g[lnk]
+        j = lnk + 1
+        if cap[j] > 0.0 or j == len(cap) - 1:
+            keep_g.append(1.0 / r)
+            keep_c.append(cap[j])
+            r = 0.0
+    cap, g = np.array(keep_c), np.array(keep_g)
+    faces = np.full(2, boundary.SURFACE_TEMPERATURE, dtype=np.int64)
+    j0, m = unknown_range(len(cap), faces)
+    if m < 1:
+        return 0.0
+    diag, off = np.zeros(m), np.zeros(m)
+    assemble_operator(g, np.ones(len(g)), faces, np.zeros(2), np.ones(2), j0, m, diag, off)
+    s = 1.0 / np.sqrt(cap[j0 : j0 + m])  # Cap^-1/2 K Cap^-1/2: symmetric tridiagonal
+    lam_min = eigh_tridiagonal(
+        diag * s * s, off[: m - 1] * s[:-1] * s[1:], eigvals_only=True, select="i", select_range=(0, 0)
+    )[0]
     return 1.0 / float(lam_min)
 
 

@@ -1,0 +1,126 @@
+"""The operator of a wall on its grid: one assembly for every path.
+
+The grid (:mod:`wallcal.grid`) gives node capacities ``c_j`` [J/(m2K)] and link conductances
+``g_l`` [W/(m2K)] (link ``l`` joins nodes ``l`` and ``l + 1``); the faces (:mod:`.boundary`) add
+their conductance to the face node and couple the inputs in. :func:`assemble_operator` forms, over
+the unknown nodes ``j0 .. j0 + m - 1`` (a face with an imposed temperature is known), the
+symmetric tridiagonal
+
+    K_w = sum_l w_l g_l (e_a - e_b)(e_a - e_b)^T + w_e h_e e_0 e_0^T + w_i h_i e_m-1 e_m-1^T
+
+with per-term weights ``w`` (1 for the operator ``K`` itself: steady state, modal path, time
+constants; ``theta`` for the implicit part of a step), and the input couplings ``K T = p u``.
+:func:`unknown_range` says which nodes are unknown; :func:`link_thetas` chooses theta per term.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from . import boundary
+
+
+@njit(cache=True)
+def unknown_range(n_nodes, bc_type):
+    """(j0, m): the first unknown node and the number of unknowns."""
+    j0 = 1 if boundary.is_known(bc_type[0]) else 0
+    j1 = n_nodes - 2 if boundary.is_known(bc_type[1]) else n_nodes - 1
+    return j0, j1 - j0 + 1
+
+
+@njit(cache=True)
+def assemble_operator(g, w, bc_type, bc_h, w_bc, j0, m, diag, off):
+    """Fill ``diag`` (m,) and ``off`` (m,) with K_w over the unknowns (``off[i]`` couples i and i + 1,
+    ``off[m - 1] = 0``); return the input couplings (p_e of unknown 0, p_i of unknown m - 1),
+    unweighted (see :func:`wallcal.engines.boundary.input_coupling`)."""
+    n_links = g.shape[0]
+    for i in range(m):
+        diag[i] = 0.0
+        off[i] = 0.0
+    for lnk in range(n_links):
+        wg = w[lnk] * g[lnk]
+        ia = lnk - j0
+        ib = ia + 1
+        if 0 <= ia < m:
+            diag[ia] += wg
+        if 0 <= ib < m:
+            diag[ib] += wg
+        if 0 <= ia and ib < m:
+            off[ia] = -wg
+    diag[0] += w_bc[0] * boundary.face_conductance(bc_type[0], bc_h[0])
+    diag[m - 1] += w_bc[1] * boundary.face_conductance(bc_type[1], bc_h[1])
+    pe = boundary.input_coupling(bc_type[0], bc_h[0], g[0], 1.0)
+    pi = boundary.input_coupling(bc_type[1], bc_h[1], g[n_links - 1], -1.0)
+    return pe, pi
+
+
+def node_stiffness(cap, g, bc_type, bc_h, dt, h_face=None):
+    """``s_j = dt (sum of the conductances at node j) / c_j`` (face terms included), shape (c, j): inf
+    for a node without capacity, 0 for a known face node. (numpy: it runs once per batch.)"""
+    total = np.zeros(cap.shape)
+    total[:, :-1] += g
+    total[:, 1:] += g
+    if h_face is None:
+        h_face = _face_conductances(bc_type, bc_h)
+    total[:, 0] += h_face[0]
+    total[:, -1] += h_face[1]
+    s = np.divide(total * dt, cap, out=np.full(cap.shape, np.inf), where=cap > 0.0)
+    for f, j in ((0, 0), (1, -1)):
+        if boundary.is_known(bc_type[f]):
+            s[:, j] = 0.0
+    return s
+
+
+def _face_conductances(bc_type, bc_h):
+    """Per face, the face conductance of every candidate (:func:`boundary.face_conductance`)."""
+    return [np.array([boundary.face_conductance(bc_type[f], h) for h in bc_h[:, f]]) for f in (0, 1)]
+
+
+def _raised_theta(theta0, budget, s):
+    """theta of a term whose stiffest node has stiffness s (array): (1 - theta) s <= budget."""
+    raise_ = np.isfinite(s) & (s * (1.0 - theta0) > budget)
+    th = np.full(s.shape, float(theta0))
+    th[raise_] = 1.0 - budget / s[raise_]
+    th[~np.isfinite(s)] = 1.0  # a node without capacity
+    return th
+
+
+def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
+    """theta per link (c, l) and per face term (c, 2), and the number of terms whose theta was raised (c,).
+
+    The discrete maximum principle: a step ``T^{n+1} = A^-1 (B T^n + inputs)`` with the M-matrix
+    ``A = Cap/dt + K_theta`` is monotone (the response to a step in an input is monotone and bounded by
+    the inputs) when ``B = Cap/dt - K_{1-theta}`` has no negative entry, i.e. at every unknown node
+    ``sum (1 - theta) g dt <= c_j`` over its terms. With the node stiffness ``s_j``
+    (:func:`node_stiffness`), a link between nodes a and b gets
+
+        theta_l = max(theta0, 1 - (1 - theta0) L / max(s_a, s_b)),   L = stiff_limit,
+
+    and an air face's term the same with its face node's stiffness (any face term whose node has no
+    capacity: 1). With ``L = 1 / (1 - theta0)`` (2 for Crank-Nicolson, the default) this is exactly
+    the condition, met with equality at the stiff nodes; terms between nodes with ``s <= L`` keep
+    theta0. ``L = inf`` keeps theta0 except at nodes without capacity (theta 1).
+    """
+    cap = np.asarray(cap, dtype=float)
+    g = np.asarray(g, dtype=float)
+    nc = cap.shape[0]
+    theta = np.full(g.shape, float(theta0))
+    bc_theta = np.full((nc, 2), float(theta0))
+    n_raised = np.zeros(nc, dtype=np.int64)
+    if theta0 >= 1.0:
+        return theta, bc_theta, n_raised
+    bc_h = np.asarray(bc_h, dtype=float)
+    h_face = _face_conductances(bc_type, bc_h)
+    s = node_stiffness(cap, g, bc_type, bc_h, dt, h_face)
+    budget = (1.0 - theta0) * stiff_limit
+    if np.isfinite(s).all() and (s * (1.0 - theta0) <= budget).all():  # no node too stiff: theta0 everywhere
+        return theta, bc_theta, n_raised
+    theta = _raised_theta(theta0, budget, np.maximum(s[:, :-1], s[:, 1:]))
+    n_raised += (theta > theta0).sum(axis=1)
+    for f, j in ((0, 0), (1, -1)):  # a face term enters B through h; a face node without capacity is algebraic
+        applies = (h_face[f] > 0.0) | ~np.isfinite(s[:, j])
+        th = np.where(applies, _raised_theta(theta0, budget, s[:, j]), theta0)
+        bc_theta[:, f] = th
+        n_raised += th > theta0
+    return np.ascontiguousarray(theta), bc_theta, n_raised
