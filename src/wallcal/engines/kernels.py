@@ -306,7 +306,7 @@ def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab
     E = exp(f (T - T_ref)), written with the link's mean-temperature factor Gm = g_ref E_m
     (:func:`_exact_factors`) as g = Gm sinh(x) / x, x = f (T_a - T_b) / 2 (no cancellation, no
     division; the closed form beyond the polynomial's range). A constant link has f = 0, so
-    g = g_ref exactly. Table links are evaluated by Simpson's rule."""
+    g = g_ref exactly. Table links take the exact mean (:func:`_table_mean`)."""
     n_links = gs.shape[0]
     for lnk in range(n_links):
         d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
