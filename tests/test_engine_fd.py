@@ -464,3 +464,22 @@ def test_modal_output_plan_equals_general_path(positions, rows):
     np.testing.assert_allclose(fast.out[:, want], slow.out[:, want], rtol=0, atol=1e-9)
     assert np.isnan(fast.out[:, ~want]).all()
     np.testing.assert_allclose(fast.final_state, slow.final_state, rtol=0, atol=1e-9)
+
+
+def test_mixed_batch_runs_each_candidate_on_its_own_path():
+    """A batch where the theta rule raises theta for some candidates only: those run on the general path,
+    the others on the modal path, each equal to its own single run (round-off of the two paths)."""
+    wall = three_layer_wall()
+    t = np.arange(1441) * 60.0
+    inp = make_input(wall, 5 + 15 * np.sin(2 * np.pi * t / 86400), np.full(1441, 20.0), 60.0, out_every=5)
+    prep = FDEngine("cn").prepare(inp)
+    first = wall.layers[0]
+    stiff = wall.replace_layer(first.id, conductivity=first.conductivity * 400.0)  # raises theta at its nodes
+    walls = [wall, stiff, wall.replace_layer(first.id, conductivity=first.conductivity * 1.1)]
+    singles = [prep.run_walls([w]) for w in walls]
+    assert [r.path for r in singles] == ["modal", "general", "modal"]
+    batch = prep.run_walls(walls)
+    assert batch.path == "modal+general"
+    for i, single in enumerate(singles):
+        np.testing.assert_allclose(batch.out[i], single.out[0], rtol=0, atol=1e-12)
+        assert np.isnan(batch.energy[i]).all() == (single.path == "modal")

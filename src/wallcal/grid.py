@@ -27,6 +27,7 @@ outputs are smooth functions of the properties.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -211,6 +212,10 @@ class PropertyArrays:
     @property
     def n_candidates(self) -> int:
         return self.conductivity.shape[0]
+
+    def take(self, index) -> PropertyArrays:
+        """The candidates at ``index`` (an integer array or a boolean mask)."""
+        return PropertyArrays(**{f.name: getattr(self, f.name)[index] for f in dataclasses.fields(self)})
 
     @classmethod
     def from_walls(cls, walls: list[Wall]) -> PropertyArrays:

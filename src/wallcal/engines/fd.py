@@ -87,7 +87,8 @@ class BatchResult:
     final_state : ndarray, shape (n_candidates, n_nodes)
     implicit_links : ndarray of int, shape (n_candidates,)
     path : str
-        ``"modal"`` (exact fast path) or ``"general"`` (tridiagonal theta scheme).
+        ``"modal"`` (exact fast path), ``"general"`` (tridiagonal theta scheme) or ``"modal+general"``
+        (a batch whose candidates took either path).
     energy is NaN on the modal path (the balance is checked on the general path; both paths
     are the same linear algebra).
     """
@@ -241,10 +242,17 @@ class PreparedFD:
         j0, m = operator.unknown_range(self.grid.n_nodes, self.bc_type)
         return int(j0), int(m)
 
-    def fast_path_possible(self, cap: np.ndarray, n_forced: np.ndarray) -> bool:
-        """The modal fast path applies: constant properties, every unknown node stores heat, one theta."""
+    def fast_path_mask(self, cap: np.ndarray, n_forced: np.ndarray) -> np.ndarray:
+        """Per candidate, whether the modal fast path applies: constant properties, every unknown node
+        stores heat, one theta on every term (none raised by the theta rule)."""
         j0, m = self.unknown_range
-        return (not self.nonlinear) and m >= 1 and bool((cap[:, j0 : j0 + m] > 0).all()) and not n_forced.any()
+        if self.nonlinear or m < 1:
+            return np.zeros(cap.shape[0], dtype=bool)
+        return (cap[:, j0 : j0 + m] > 0).all(axis=1) & (n_forced == 0)
+
+    def fast_path_possible(self, cap: np.ndarray, n_forced: np.ndarray) -> bool:
+        """The modal fast path applies to every candidate (see :meth:`fast_path_mask`)."""
+        return bool(self.fast_path_mask(cap, n_forced).all())
 
     def run_batch(
         self,
@@ -265,9 +273,9 @@ class PreparedFD:
         initial_state : ndarray, shape (n_candidates, n_nodes), optional
             Initial node temperatures [degC]; default: steady state of the first boundary values.
         path : {"auto", "modal", "general"}
-            ``"auto"`` takes the exact modal fast path whenever the walls allow it
-            (see :mod:`wallcal.engines.modal`), else the general tridiagonal path.
-            The result's ``path`` attribute says which ran.
+            ``"auto"`` takes the exact modal fast path for every candidate that allows it
+            (see :mod:`wallcal.engines.modal`) and the general tridiagonal path for the others.
+            The result's ``path`` attribute says which ran (``"modal+general"`` for a mixed batch).
         rows : ndarray of bool, shape (n_probes + 2,), optional
             Output rows wanted (probes, then exterior and interior flux); the fast path forms only
             these (the others are NaN), which saves time when calibrating on a few targets.
@@ -278,14 +286,20 @@ class PreparedFD:
             raise EngineError("candidate wall with non-positive or non-finite properties")
         theta, bc_theta, n_forced = self._thetas(cap, g)
         pa, pb, pw = self._probe_weights(probe_depths, nc)
-        possible = self.fast_path_possible(cap, n_forced)
-        if path == "modal" and not possible:
+        fast = self.fast_path_mask(cap, n_forced)
+        if path == "modal" and not fast.all():
             raise EngineError(
                 "the modal fast path needs constant conductivities, heat capacity at every "
                 "unknown node and one theta on every link (none raised by the theta rule); use path='general'"
             )
-        if path in ("auto", "modal") and possible:
+        if path in ("auto", "modal") and fast.all():
             return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced, rows)
+        if path == "auto" and fast.any():  # a mixed batch: each candidate on its own path
+            return self._run_mixed(fast, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state, rows)
+        return self._run_general(props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state)
+
+    def _run_general(self, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state) -> BatchResult:
+        nc = props.n_candidates
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         bc_h = np.broadcast_to(self.bc_h, (nc, 2)).copy()
@@ -307,6 +321,23 @@ class PreparedFD:
 
         out, energy, tend = in_threads(part, nc)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
+
+    def _run_mixed(self, fast, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state, rows):
+        """Candidates that allow it on the modal path, the others on the general path, in one result."""
+        idx = (np.flatnonzero(fast), np.flatnonzero(~fast))
+        init = (None, None) if initial_state is None else tuple(np.asarray(initial_state)[i] for i in idx)
+        a, b = idx
+        modal_res = self._run_modal(cap[a], g[a], pa[a], pb[a], pw[a], init[0], n_forced[a], rows)
+        general_res = self._run_general(
+            props.take(b), cap[b], g[b], theta[b], bc_theta[b], n_forced[b], pa[b], pb[b], pw[b], init[1]
+        )
+        nc = len(fast)
+        out = np.empty((nc,) + modal_res.out.shape[1:])
+        energy = np.empty((nc, 3))
+        tend = np.empty((nc, cap.shape[1]))
+        for i, res in zip(idx, (modal_res, general_res), strict=True):
+            out[i], energy[i], tend[i] = res.out, res.energy, res.final_state
+        return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal+general")
 
     # ------------------------------------------------------------------ fast path
     def _output_plan(self) -> modal.ModalPlan:
@@ -351,8 +382,8 @@ class PreparedFD:
             "nodes_per_layer": list(self.grid.nodes_per_layer),
             "node_rule": self.grid.rule,
             "implicit_links": int(res.implicit_links[c]),
-            "energy_residual_J_m2": None if res.path == "modal" else float(res.energy_residual[c]),
-            "energy_throughput_J_m2": None if res.path == "modal" else float(abs(e_in) + abs(e_out)),
+            "energy_residual_J_m2": None if np.isnan(e_in) else float(res.energy_residual[c]),
+            "energy_throughput_J_m2": None if np.isnan(e_in) else float(abs(e_in) + abs(e_out)),
             "nonlinear": self.nonlinear,
         }
         if elapsed is not None:
