@@ -7,14 +7,13 @@ module-scoped fixtures shared by several tests.
 from __future__ import annotations
 
 import json
-import os
 import sys
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import CAMPAIGN
 from wallcal.engines.base import BoundaryInput, SimulationInput
 from wallcal.errors import EngineError, OptionalDependencyError
 from wallcal.idf import export_idf, wall_to_idf_objects
@@ -22,7 +21,6 @@ from wallcal.wall import Layer, Probe, Wall
 
 pytestmark = pytest.mark.energyplus
 
-CAMPAIGN = Path(os.environ.get("WALLCAL_CAMPAIGN_DIR", "/work/shared/data/campaign_visible"))
 PROBES = ("T3A", "T2A", "T1A")
 CALIBRATION = ("2025-05-30 00:00", "2025-06-07 00:00")
 
@@ -34,7 +32,7 @@ def eplus():
 
 def _need_campaign():
     if not (CAMPAIGN / "measured.csv").exists():
-        pytest.skip(f"campaign data not found in {CAMPAIGN} (set WALLCAL_CAMPAIGN_DIR)")
+        pytest.skip(f"campaign data not found in {CAMPAIGN} (the repository sits next to ../shared)")
 
 
 def base_wall() -> Wall:

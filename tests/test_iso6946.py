@@ -2,7 +2,7 @@
 
 References: ISO 6946:2017 Table 7 (surface resistances), Table 8 (unventilated air
 layers), eq. (6)-(8); the study wall of the calibration paper
-(/work/shared/reference/wall_calibration_paper.md, Tables I and II, design U 0.12).
+(../shared/reference/wall_calibration_paper.md relative to the repository, Tables I and II, design U 0.12).
 Expected totals are written out by hand (sums of d / lambda) in each test.
 """
 
