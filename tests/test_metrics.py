@@ -1,5 +1,7 @@
 """Metrics: definitions checked on hand-computed numbers."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -30,3 +32,46 @@ def test_relative_accuracy_and_nan_skipped():
     assert m["n"] == 3
     assert m["accuracy"] == pytest.approx(0.3)
     assert m["within_accuracy"]
+
+
+def test_batch_rmse_by_hand():
+    from wallcal.metrics import rmse
+
+    y = np.array([[1.0, 2.0, np.nan, 4.0], [0.0, 0.0, 0.0, 0.0]])
+    s = np.array([[2.0, 2.0, 9.0, 2.0], [3.0, -4.0, 0.0, 0.0]])
+    # row 0: errors 1, 0, (skipped), -2 -> sqrt(5 / 3); row 1: 3, -4, 0, 0 -> sqrt(25 / 4)
+    np.testing.assert_allclose(rmse(y, s), [math.sqrt(5 / 3), 2.5], rtol=1e-15)
+    # over the other axis: column 2 has one valid pair (0 - 0); columns are (1,3), (0,-4), (nan,0), (-2,0)
+    np.testing.assert_allclose(rmse(y, s, axis=0), [math.sqrt(5), math.sqrt(8), 0.0, math.sqrt(2)], rtol=1e-15)
+    assert rmse(np.array([np.nan]), np.array([1.0])) == 0.0  # no valid pair: 0 / max(0, 1)
+
+
+def test_metrics_of_an_empty_or_constant_series():
+    m = compute([np.nan, 1.0], [2.0, np.nan], accuracy=0.5)
+    assert m["n"] == 0 and np.isnan(m["rmse"]) and m["accuracy"] == 0.5 and m["within_accuracy"] is False
+    m = compute([2.0, 2.0], [2.5, 1.5])  # constant measured series: no range, rmse 0.5
+    assert m["rmse"] == pytest.approx(0.5) and np.isnan(m["rn_rmse"])
+    assert m["cv_rmse_eff"] == pytest.approx(0.25) and np.isnan(m["accuracy"]) and m["within_accuracy"] is False
+    m = compute([0.0, 0.0], [1.0, -1.0])  # zero mean: the Guideline-14 ratios are undefined
+    assert np.isnan(m["nmbe"]) and np.isnan(m["cv_rmse_g14"]) and np.isnan(m["cv_rmse_eff"])
+    assert m["mbe"] == 0.0
+    m = compute([1.0], [2.0])  # n - p = 0 degrees of freedom
+    assert np.isnan(m["nmbe"]) and np.isnan(m["cv_rmse_g14"]) and m["rmse"] == 1.0
+
+
+def test_metrics_table_by_hand():
+    import pandas as pd
+
+    from wallcal.metrics import METRIC_COLUMNS, table
+
+    meas = pd.DataFrame({"a": [1.0, 2.0, 3.0], "b": [10.0, 10.0, 20.0]})
+    sim = pd.DataFrame({"a": [1.0, 2.0, 4.0], "b": [10.0, 11.0, 20.0]})
+    t = table(meas, sim, {"a": (0.5, None), "b": (None, 0.1)})
+    assert list(t.columns) == list(METRIC_COLUMNS)
+    assert list(t["signal"]) == ["a", "b"]
+    assert t.loc[0, "rmse"] == pytest.approx(math.sqrt(1 / 3)) and t.loc[0, "accuracy"] == 0.5
+    assert not t.loc[0, "within_accuracy"]  # 0.577 > 0.5
+    y_eff = math.sqrt((100 + 100 + 400) / 3)
+    assert t.loc[1, "accuracy"] == pytest.approx(0.1 * y_eff) and t.loc[1, "within_accuracy"]
+    t2 = table(meas, sim, {})  # no accuracy stated
+    assert np.isnan(t2.loc[0, "accuracy"]) and not t2.loc[0, "within_accuracy"]
