@@ -1,0 +1,121 @@
+"""Calibration objectives (wallcal.calibration.objective) against hand computations.
+
+First on small arrays written out by hand (the same functions the Evaluator calls), then through the Evaluator on
+the example study, against sums formed here from `wallcal.simulate` (the user's path, not the batch engine).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from wallcal.calibration import parse_space
+from wallcal.calibration.objective import Evaluator, accuracy_scale, objective_value, residual_weights
+
+# two candidates, two targets: CSE [unit^2], valid samples, weights, accuracies
+CSE = np.array([[2.0, 16.0], [8.0, 0.0]])
+N_VALID = np.array([2, 4])
+WEIGHTS = [1.0, 3.0]
+SCALE = [0.5, 2.0]
+# RMSE = sqrt(CSE / n): candidate 0: [1, 2]; candidate 1: [2, 0]
+
+
+@pytest.mark.parametrize(
+    "kind,expected",
+    [
+        ("cse", [2 + 16, 8 + 0]),
+        ("weighted_cse", [1 * 2 + 3 * 16, 1 * 8 + 3 * 0]),  # 50, 8
+        ("weighted_rmse", [1 * 1 + 3 * 2, 1 * 2 + 3 * 0]),  # 7, 2
+        ("rmse_accuracy", [1 / 0.5 + 2 / 2.0, 2 / 0.5 + 0 / 2.0]),  # 3, 4
+    ],
+)
+def test_objective_by_hand(kind, expected):
+    got = objective_value(kind, CSE, N_VALID, WEIGHTS, SCALE)
+    assert got.shape == (2,)
+    np.testing.assert_allclose(got, expected, rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "kind,expected",
+    [
+        ("cse", [1.0, 1.0]),
+        ("weighted_cse", [1.0, 3.0]),
+        ("weighted_rmse", [1.0 / 2, 3.0 / 4]),  # w / n: sum w e^2 / n = sum w RMSE^2
+        ("rmse_accuracy", [1.0 / (0.25 * 2), 1.0 / (4.0 * 4)]),  # 1 / (acc^2 n): sum (RMSE / acc)^2
+    ],
+)
+def test_residual_weights_by_hand(kind, expected):
+    w = residual_weights(kind, N_VALID, WEIGHTS, SCALE)
+    np.testing.assert_allclose(w, expected, rtol=1e-15)
+    # and the sum of squared residuals they give, for candidate 0 (RMSE 1 and 2)
+    ssr = float((w * CSE[0]).sum())
+    by_hand = {"cse": 18.0, "weighted_cse": 50.0, "weighted_rmse": 1 + 3 * 4, "rmse_accuracy": 4 + 1}[kind]
+    assert ssr == pytest.approx(by_hand, rel=1e-15)
+
+
+def test_accuracy_scale_by_hand():
+    assert accuracy_scale(0.5, None, np.array([1.0, 2.0])) == 0.5
+    assert accuracy_scale(0.5, 0.1, np.array([1.0, 2.0])) == 0.5  # the absolute accuracy wins
+    # relative: 0.03 x sqrt((3^2 + 4^2) / 2) = 0.03 x 3.5355
+    assert accuracy_scale(None, 0.03, np.array([3.0, -4.0])) == pytest.approx(0.03 * math.sqrt(12.5), rel=1e-15)
+
+
+# ---------------------------------------------------------------------------- through the Evaluator
+TARGETS = ["T3A", "T1A", "qi"]
+WEIGHT = {"T3A": 2.0, "T1A": 0.5, "qi": 1.5}
+
+
+@pytest.fixture(scope="module")
+def weighted_study(example_study):
+    sensors = tuple(dataclasses.replace(s, weight=WEIGHT.get(s.name, 1.0)) for s in example_study.sensors)
+    study = dataclasses.replace(example_study, sensors=sensors)
+    from wallcal import simulate
+
+    res = simulate(study)
+    return study, res
+
+
+@pytest.mark.parametrize("kind", ["cse", "weighted_cse", "weighted_rmse", "rmse_accuracy"])
+def test_evaluator_objective_matches_a_hand_sum_over_the_simulated_series(weighted_study, kind):
+    study, res = weighted_study
+    cal = copy.deepcopy(study.calibration)
+    cal["targets"] = TARGETS
+    cal["objective"] = kind
+    space = parse_space(study, cal)
+    from wallcal.simulation import prepare
+
+    ev = Evaluator(prepare(study), space)
+    got = float(ev.objective(space.base[None])[0])
+    terms = []
+    for t in TARGETS:
+        y, s = res.measured[t].to_numpy(), res.simulated[t].to_numpy()
+        ok = np.isfinite(y)
+        e = s[ok] - y[ok]
+        cse, rmse = float(np.sum(e**2)), float(np.sqrt(np.mean(e**2)))
+        sensor = study.sensor(t)
+        acc = (
+            sensor.accuracy if sensor.accuracy is not None else sensor.accuracy_relative * np.sqrt(np.mean(y[ok] ** 2))
+        )
+        terms.append(
+            {
+                "cse": cse,
+                "weighted_cse": WEIGHT[t] * cse,
+                "weighted_rmse": WEIGHT[t] * rmse,
+                "rmse_accuracy": rmse / acc,
+            }[kind]
+        )
+    # the batch engine and the user's simulate() agree to round-off on the same grid
+    assert got == pytest.approx(sum(terms), rel=1e-8)
+    # the least-squares residuals: sum(r^2) is the objective (squared-error kinds) or its smooth surrogate
+    r = ev.residuals(space.base[None])
+    ssr = float((r**2).sum())
+    if kind in ("cse", "weighted_cse"):
+        assert ssr == pytest.approx(got, rel=1e-9)
+    else:
+        rm = [np.sqrt(np.mean((res.simulated[t] - res.measured[t]).dropna() ** 2)) for t in TARGETS]
+        w = [WEIGHT[t] * rm[i] ** 2 if kind == "weighted_rmse" else (terms[i]) ** 2 for i, t in enumerate(TARGETS)]
+        assert ssr == pytest.approx(sum(w), rel=1e-8)
