@@ -34,7 +34,12 @@ WORK = REPO / ".mutate"
 #: module -> the test files that exercise it (the fastest relevant subset)
 TESTS: dict[str, list[str]] = {
     "src/wallcal/metrics.py": ["tests/test_metrics.py", "tests/test_outputs.py"],
-    "src/wallcal/wall.py": ["tests/test_wall.py", "tests/test_study.py", "tests/test_iso6946.py", "tests/test_iso13786.py"],
+    "src/wallcal/wall.py": [
+        "tests/test_wall.py",
+        "tests/test_study.py",
+        "tests/test_iso6946.py",
+        "tests/test_iso13786.py",
+    ],
     "src/wallcal/calibration/objective.py": ["tests/test_objective_reference.py", "tests/test_flux_at_depth.py"],
     "src/wallcal/standards/iso6946.py": ["tests/test_iso6946.py"],
     "src/wallcal/standards/iso10456.py": ["tests/test_iso10456.py"],
