@@ -83,3 +83,11 @@ def test_every_allow_list_entry_has_a_reason():
 def test_an_empty_ci_variable_is_not_ci(monkeypatch, empty):
     monkeypatch.setenv("CI", empty)
     assert not skip_policy.in_ci()
+
+
+def test_the_allow_list_is_documented():
+    from conftest import REPO
+
+    doc = (REPO / "docs" / "testing.md").read_text()
+    for a in skip_policy.ALLOWED:
+        assert a.nodeid.lstrip("*") in doc and a.reason in doc and a.why in doc, a
