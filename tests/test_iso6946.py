@@ -161,3 +161,95 @@ def test_resolve_layers_for_iso13786():
     assert layers[1].is_massless and layers[1].thermal_resistance == pytest.approx(0.09)
     layers, cut = iso6946.resolve_layers(study_wall(), air_layers={"2": "well"})
     assert cut and [layer.id for layer in layers] == ["3", "4", "5", "6", "7", "8", "9"]
+
+
+# ---------------------------------------------------------------------------- air-layer detection and breakdown
+@pytest.mark.parametrize(
+    "material,expected",
+    [
+        ("Air gap, well-ventilated", "well_ventilated"),
+        ("air gap, well_ventilated", "well_ventilated"),
+        ("AIR LAYER (Slightly-Ventilated)", "slightly_ventilated"),
+        ("air cavity, slightly_ventilated", "slightly_ventilated"),
+        ("unventilated air space", "unventilated"),
+        ("air space, not ventilated", "unventilated"),
+        ("still air", "unventilated"),
+    ],
+)
+def test_ventilation_read_from_the_material_text(material, expected):
+    wall = Wall((Layer("a", 0.1, 0.04, 30, 1000, "wool"), Layer("gap", 0.03, material=material)))
+    assert iso6946.find_air_layers(wall) == {"gap": expected}
+
+
+def test_air_layer_problems_are_all_reported():
+    wall = Wall(
+        (
+            Layer("a", 0.1, 0.04, 30, 1000, "wool"),
+            Layer("gap", 0.4, material="air, unventilated"),  # too thick for Table 8
+            Layer("b", 0.02, 0.2, 500, 1600, "panel"),
+        )
+    )
+    with pytest.raises(StudyError) as exc:
+        iso6946.find_air_layers(wall)
+    assert exc.value.problems == [
+        "air_layers['gap']: an ISO 6946 air layer must be > 0 and <= 0.3 m thick, got thickness 0.4 m"
+    ]
+    with pytest.raises(StudyError) as exc:
+        iso6946.find_air_layers(wall, {"gp": "slightly", "b": "sometimes"})
+    text = "\n".join(exc.value.problems)
+    assert "air_layers['gp']: no layer with this id; did you mean 'gap'" in text
+    assert "air_layers['b']: unknown ventilation 'sometimes'" in text
+
+
+@pytest.mark.parametrize(
+    "alias,canonical",
+    [
+        ("un", "unventilated"),
+        ("none", "unventilated"),
+        ("Slightly", "slightly_ventilated"),
+        ("well-ventilated", "well_ventilated"),
+        ("well ventilated", "well_ventilated"),
+    ],
+)
+def test_ventilation_aliases(alias, canonical):
+    assert iso6946.normalize_ventilation(alias) == canonical
+
+
+def test_air_layer_resistance_by_direction_table_8():
+    # 50 mm: 0.16 upward, 0.18 horizontal, 0.21 downward (ISO 6946:2017 Table 8); slightly ventilated: half
+    assert iso6946.air_layer_resistance(0.05, "unventilated", "upward") == pytest.approx(0.16)
+    assert iso6946.air_layer_resistance(0.05, "unventilated", "downward") == pytest.approx(0.21)
+    assert iso6946.air_layer_resistance(0.05) == pytest.approx(0.18)
+    assert iso6946.air_layer_resistance(0.05, "slightly", "downward") == pytest.approx(0.105)
+    assert iso6946.air_layer_resistance(0.05, "well", "downward") == 0.0
+    with pytest.raises(StudyError, match="unknown heat-flow direction 'sideways'"):
+        iso6946.surface_resistances("sideways")
+
+
+def test_breakdown_kinds_and_direction():
+    wall = Wall(
+        (
+            Layer("a", 0.1, 0.04, 30, 1000, "wool", contact_resistance=0.05),
+            Layer("gap", 0.05, material="air, unventilated"),
+            Layer("m", 0.0, thermal_resistance=0.2, material="membrane"),
+            Layer("b", 0.02, 0.2, 500, 1600, "panel"),
+        )
+    )
+    res = iso6946.thermal_resistance(wall, direction="downward")
+    assert [(b.id, b.kind) for b in res.layers] == [
+        ("a", "material"),
+        ("a/contact", "contact"),
+        ("gap", "air:unventilated"),
+        ("m", "no-mass"),
+        ("b", "material"),
+    ]
+    assert [b.resistance for b in res.layers] == pytest.approx([2.5, 0.05, 0.21, 0.2, 0.1])
+    assert (res.rsi, res.rse) == (0.17, 0.04)  # downward heat flow: Rsi 0.17
+    assert res.total_resistance == pytest.approx(0.17 + 2.5 + 0.05 + 0.21 + 0.2 + 0.1 + 0.04)
+    assert res.u_value == pytest.approx(1 / res.total_resistance)
+    hot = iso6946.thermal_resistance(wall, mean_temperature_C=10.0)
+    assert [b.kind for b in hot.layers][0] == "material" and hot.layers[3].kind == "no-mass"
+    # explicit surface resistances override the table
+    res2 = iso6946.thermal_resistance(wall, rsi=0.2, rse=0.1)
+    assert (res2.rsi, res2.rse) == (0.2, 0.1)
+    assert iso6946.u_value(wall, rsi=0.2, rse=0.1) == pytest.approx(res2.u_value)
