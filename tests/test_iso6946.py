@@ -253,3 +253,65 @@ def test_breakdown_kinds_and_direction():
     res2 = iso6946.thermal_resistance(wall, rsi=0.2, rse=0.1)
     assert (res2.rsi, res2.rse) == (0.2, 0.1)
     assert iso6946.u_value(wall, rsi=0.2, rse=0.1) == pytest.approx(res2.u_value)
+
+
+def _slight_wall(panel=0.015, contact=0.0):
+    return Wall(
+        (
+            Layer("p", panel, 0.13, 500, 1600, "panel", contact_resistance=contact),
+            Layer("gap", 0.035, material="air, slightly ventilated"),
+            Layer("w", 0.1, 0.04, 135, 1030, "wool"),
+        )
+    )
+
+
+def test_slightly_ventilated_half_rule_and_cap_by_hand():
+    # panel 0.015 / 0.13 = 0.11538; with Rse 0.04 that is 0.15538 > 0.15: scaled to 0.15 - 0.04 = 0.11
+    # gap 35 mm: Table 8 horizontal 0.18 (25..50 mm), half = 0.09; wool 2.5 -> R = 2.7, R_T = 2.87
+    res = iso6946.thermal_resistance(_slight_wall())
+    assert [(b.id, b.kind) for b in res.layers] == [
+        ("p", "material(capped)"),
+        ("gap", "air:slightly_ventilated"),
+        ("w", "material"),
+    ]
+    assert [b.resistance for b in res.layers] == pytest.approx([0.11, 0.09, 2.5], rel=1e-12)
+    assert res.total_resistance == pytest.approx(2.87, rel=1e-12)
+    assert any("capped at 0.15" in n for n in res.notes) and any("half the Table 8" in n for n in res.notes)
+    # a thinner panel (0.0769 + 0.04 < 0.15) is not capped
+    thin = iso6946.thermal_resistance(_slight_wall(panel=0.01))
+    assert thin.layers[0].kind == "material" and thin.layers[0].resistance == pytest.approx(0.01 / 0.13)
+    assert not any("capped" in n for n in thin.notes)
+    # a contact resistance outside the air layer is capped with the panel: 0.11538 + 0.02 -> scaled to 0.11
+    c = iso6946.thermal_resistance(_slight_wall(contact=0.02))
+    assert c.layers[0].resistance + c.layers[1].resistance == pytest.approx(0.11, rel=1e-12)
+    assert c.layers[1].kind == "contact(capped)"
+    with pytest.raises(StudyError, match="exceeds the 0.15 m2K/W cap"):
+        iso6946.thermal_resistance(_slight_wall(), rse=0.2)
+
+
+def test_opening_area_limits_and_errors():
+    un = iso6946.thermal_resistance(_slight_wall(), air_layers={"gap": "unventilated"})
+    well = iso6946.thermal_resistance(_slight_wall(), air_layers={"gap": "well"})
+    assert iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=400).total_resistance == pytest.approx(
+        un.total_resistance
+    )
+    assert iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=1600).total_resistance == pytest.approx(
+        well.total_resistance
+    )
+    mid = iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=750)
+    assert mid.total_resistance == pytest.approx(0.75 * un.total_resistance + 0.25 * well.total_resistance)
+    assert mid.resistance == pytest.approx(mid.total_resistance - 0.13 - 0.04)
+    assert "A_v = 750 mm2/m" in mid.notes[0]
+    with pytest.raises(StudyError, match="exactly one slightly ventilated air layer, found 0"):
+        iso6946.thermal_resistance(_slight_wall(), air_layers={"gap": "unventilated"}, opening_area_mm2_per_m=900)
+    with pytest.raises(StudyError, match="surface resistances must be >= 0"):
+        iso6946.thermal_resistance(_slight_wall(), rsi=-0.1)
+
+
+def test_resolve_layers_direction_and_slight_ventilation():
+    layers, cut = iso6946.resolve_layers(_slight_wall(), direction="downward")
+    assert not cut and layers[1].is_massless
+    # 35 mm downward: Table 8 interpolated between 25 mm (0.19) and 50 mm (0.21) = 0.198, halved = 0.099
+    assert layers[1].thermal_resistance == pytest.approx(0.099, rel=1e-12)
+    assert layers[1].conductivity is None and layers[1].density is None and layers[1].specific_heat is None
+    assert layers[0] == _slight_wall().layers[0] and layers[2] == _slight_wall().layers[2]
