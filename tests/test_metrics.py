@@ -75,3 +75,24 @@ def test_metrics_table_by_hand():
     assert t.loc[1, "accuracy"] == pytest.approx(0.1 * y_eff) and t.loc[1, "within_accuracy"]
     t2 = table(meas, sim, {})  # no accuracy stated
     assert np.isnan(t2.loc[0, "accuracy"]) and not t2.loc[0, "within_accuracy"]
+
+
+def test_guideline_14_figures_by_hand():
+    # y = 2, 4 (mean 3), s = 3, 6: errors s - y = 1, 2; n - p = 1 degree of freedom
+    m = compute([2.0, 4.0], [3.0, 6.0])
+    assert m["mbe"] == pytest.approx(-3.0 / 2)  # sum(y - s) / n
+    assert m["nmbe"] == pytest.approx(-3.0 / (1 * 3.0))  # sum(y - s) / ((n - p) mean(y))
+    assert m["cv_rmse_g14"] == pytest.approx(math.sqrt(5.0 / 1) / 3.0)
+    assert m["rmse"] == pytest.approx(math.sqrt(2.5)) and m["rn_rmse"] == pytest.approx(math.sqrt(2.5) / 2.0)
+    assert m["cv_rmse_eff"] == pytest.approx(math.sqrt(2.5) / math.sqrt(10.0))
+    assert m["mae"] == pytest.approx(1.5) and m["max_abs_error"] == pytest.approx(2.0)
+
+
+def test_metrics_of_no_valid_pair_are_all_nan():
+    from wallcal.metrics import METRIC_COLUMNS
+
+    m = compute([np.nan], [1.0])
+    assert list(m) == list(METRIC_COLUMNS[1:])
+    for k in ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14", "mae", "max_abs_error", "accuracy"):
+        assert np.isnan(m[k]), k
+    assert m["n"] == 0 and m["within_accuracy"] is False
