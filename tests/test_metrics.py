@@ -96,3 +96,23 @@ def test_metrics_of_no_valid_pair_are_all_nan():
     for k in ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14", "mae", "max_abs_error", "accuracy"):
         assert np.isnan(m[k]), k
     assert m["n"] == 0 and m["within_accuracy"] is False
+
+
+def test_thresholds_at_their_edges():
+    # mean exactly 1, range 1 and y_eff < 1 still give finite normalised figures
+    m = compute([0.5, 1.5], [1.0, 1.0])
+    assert m["nmbe"] == pytest.approx(0.0 / 1.0) and m["cv_rmse_g14"] == pytest.approx(math.sqrt(0.5) / 1.0)
+    m = compute([0.2, 0.4], [0.3, 0.4])  # range 0.2, y_eff 0.316, mean 0.3
+    assert m["rn_rmse"] == pytest.approx(math.sqrt(0.005) / 0.2)
+    assert m["cv_rmse_eff"] == pytest.approx(math.sqrt(0.005) / math.sqrt(0.1))
+    assert m["nmbe"] == pytest.approx(-0.1 / (1 * 0.3))
+    # an RMSE equal to the accuracy is within it
+    assert compute([0.0, 0.0], [0.5, -0.5], accuracy=0.5)["within_accuracy"] is True
+    # the batch RMSE of a single valid pair divides by 1
+    from wallcal.metrics import METRIC_COLUMNS, rmse, table
+
+    assert rmse(np.array([np.nan, 1.0]), np.array([0.0, 3.0])) == pytest.approx(2.0)
+    # a table with no signal still has the metric columns
+    import pandas as pd
+
+    assert list(table(pd.DataFrame(), pd.DataFrame(), {}).columns) == list(METRIC_COLUMNS)
