@@ -100,6 +100,31 @@ def results(module: str) -> dict:
     return {k: STATUS.get(v, "not checked" if v is None else "suspicious") for k, v in codes.items()}
 
 
+def mutant_diffs(module: str) -> dict[str, str]:
+    """The changed line of every mutant of ``module`` (``-old`` / ``+new``), read from mutmut's mutated file."""
+    import ast
+    import difflib
+
+    path = WORK / slug(module) / "mutants" / module
+    if not path.exists():
+        return {}
+    src = path.read_text()
+    funcs = {}
+    for node in ast.walk(ast.parse(src)):
+        if isinstance(node, ast.FunctionDef) and "__mutmut_" in node.name:
+            funcs[node.name] = ast.get_source_segment(src, node).split("\n")[1:]
+    prefix = module.removeprefix("src/").removesuffix(".py").replace("/", ".")
+    out = {}
+    for name, body in funcs.items():
+        base, _, k = name.rpartition("__mutmut_")
+        if k == "orig" or f"{base}__mutmut_orig" not in funcs:
+            continue
+        old = funcs[f"{base}__mutmut_orig"]
+        d = [ln for ln in difflib.ndiff(old, body) if ln[:1] in "-+"]
+        out[f"{prefix}.{name}"] = " / ".join(" ".join(ln.split()) for ln in d)[:200]
+    return out
+
+
 def report(modules: list[str]) -> str:
     out = []
     tk = tn = 0
@@ -112,9 +137,10 @@ def report(modules: list[str]) -> str:
         killed = c["killed"] + c["caught by type check"]
         tk, tn = tk + killed, tn + len(r)
         out.append(f"{m}: {killed}/{len(r)} killed ({100 * killed / len(r):.1f} %) " + dict(c).__repr__())
+        diffs = mutant_diffs(m)
         for k, v in sorted(r.items()):
             if v not in ("killed", "caught by type check"):
-                out.append(f"    {v:10s} {k}")
+                out.append(f"    {v:10s} {k.rpartition('.')[2]}: {diffs.get(k, '?')}")
     if tn:
         out.append(f"all: {tk}/{tn} killed ({100 * tk / tn:.1f} %)")
     return "\n".join(out)
