@@ -109,10 +109,11 @@ def mutant_diffs(module: str) -> dict[str, str]:
     if not path.exists():
         return {}
     src = path.read_text()
+    lines = src.split("\n")
     funcs = {}
     for node in ast.walk(ast.parse(src)):
         if isinstance(node, ast.FunctionDef) and "__mutmut_" in node.name:
-            funcs[node.name] = ast.get_source_segment(src, node).split("\n")[1:]
+            funcs[node.name] = lines[node.lineno : node.end_lineno]
     prefix = module.removeprefix("src/").removesuffix(".py").replace("/", ".")
     out = {}
     for name, body in funcs.items():
@@ -120,7 +121,14 @@ def mutant_diffs(module: str) -> dict[str, str]:
         if k == "orig" or f"{base}__mutmut_orig" not in funcs:
             continue
         old = funcs[f"{base}__mutmut_orig"]
-        d = [ln for ln in difflib.ndiff(old, body) if ln[:1] in "-+"]
+        if len(old) == len(body):  # the usual case: one line changed
+            d = [x for a, b in zip(old, body, strict=True) if a != b for x in ("-" + a, "+" + b)]
+        else:
+            d = [
+                ln
+                for ln in difflib.unified_diff(old, body, lineterm="", n=0)
+                if ln[:1] in "-+" and ln[:3] not in ("---", "+++")
+            ]
         out[f"{prefix}.{name}"] = " / ".join(" ".join(ln.split()) for ln in d)[:200]
     return out
 
