@@ -92,3 +92,9 @@ def test_steady_profile_with_a_contact_resistance_by_hand():
     np.testing.assert_allclose(T, [0.0, 1.0, 2.0, 8.25, 14.5, 16.9, 17.3], atol=1e-12)
     assert w.u_value() == pytest.approx(1.0 / (0.13 + 1.73 + 0.04))
     assert w.u_value(rsi=0.1, rse=0.1) == pytest.approx(1.0 / 1.93)
+
+
+def test_steady_profile_with_a_non_zero_exterior_temperature():
+    w = _wall()
+    # T(x) = T_e + (T_i - T_e) R(x) / R: with T_e = -5, T_i = 12.3 (17.3 K across 1.73 m2K/W, 10 K per m2K/W)
+    np.testing.assert_allclose(w.steady_profile(-5.0, 12.3, [0.0, 0.1, 0.17]), [-5.0, -3.0, 12.3], atol=1e-12)
