@@ -116,3 +116,13 @@ def test_thresholds_at_their_edges():
     import pandas as pd
 
     assert list(table(pd.DataFrame(), pd.DataFrame(), {}).columns) == list(METRIC_COLUMNS)
+
+
+def test_missing_values_given_as_none_are_skipped():
+    # a plain list with None (as a user might pass) is read as NaN and skipped, in either argument
+    m = compute([1.0, None, 3.0], [1.5, 2.0, None])
+    assert m["n"] == 1 and m["rmse"] == pytest.approx(0.5)
+    from wallcal.metrics import rmse
+
+    assert rmse([1.0, None, 3.0], [2.0, 2.0, 5.0]) == pytest.approx(math.sqrt(2.5))
+    assert rmse([1.0, 2.0], [None, 4.0]) == pytest.approx(2.0)
