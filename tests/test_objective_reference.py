@@ -119,3 +119,45 @@ def test_evaluator_objective_matches_a_hand_sum_over_the_simulated_series(weight
         rm = [np.sqrt(np.mean((res.simulated[t] - res.measured[t]).dropna() ** 2)) for t in TARGETS]
         w = [WEIGHT[t] * rm[i] ** 2 if kind == "weighted_rmse" else (terms[i]) ** 2 for i, t in enumerate(TARGETS)]
         assert ssr == pytest.approx(sum(w), rel=1e-8)
+
+
+def test_objective_and_residuals_from_one_run(weighted_study):
+    study, _ = weighted_study
+    cal = copy.deepcopy(study.calibration)
+    cal["targets"], cal["objective"] = TARGETS, "weighted_rmse"
+    space = parse_space(study, cal)
+    from wallcal.simulation import prepare
+
+    ev = Evaluator(prepare(study), space)
+    X = np.stack([space.base, space.base * 1.05])
+    f, R = ev.objective_and_residuals(X)
+    np.testing.assert_allclose(f, ev.objective(X), rtol=1e-12)
+    np.testing.assert_allclose(R, ev.residuals(X), rtol=1e-12)
+    assert f.shape == (2,) and R.shape == (2, len(TARGETS) * ev.y.shape[1])
+
+
+def test_evaluator_candidates_with_lambda_t_and_contact_parameters_equal_simulate(example_study):
+    """Parameters that change the grid or the conductivity law (a lambda(T) coefficient, a contact resistance
+    whose base value is 0): the Evaluator's candidate equals `simulate` of the candidate wall."""
+    from wallcal import simulate
+    from wallcal.simulation import prepare
+
+    cal = copy.deepcopy(example_study.calibration)
+    cal["parameters"] = [
+        {
+            "layers": ["3"],
+            "property": "conductivity_temperature_coefficient",
+            "bounds": [0.0, 0.01],
+            "bounds_kind": "absolute",
+        },
+        {"layers": ["4"], "property": "contact_resistance", "bounds": [0.0, 0.2], "bounds_kind": "absolute"},
+    ]
+    space = parse_space(example_study, cal)
+    ev = Evaluator(prepare(example_study), space)
+    x = np.array([0.006, 0.1])
+    got = float(ev.objective(x[None])[0])
+    res = simulate(example_study.replace(wall=space.wall_at(example_study.wall, x)))
+    cse = sum(float(((res.simulated[t] - res.measured[t]) ** 2).sum()) for t in space.targets)
+    assert got == pytest.approx(cse, rel=1e-6)
+    # and the candidate really differs from the base case
+    assert abs(got - float(ev.objective(np.zeros((1, 2)))[0])) > 1e-3 * got
