@@ -101,7 +101,10 @@ def test_contact_resistance_enters_as_its_resistance(scheme):
     whose conductance were doubled (1 / (2 R_c)) would give dT / 6.25 instead of dT / 6.5 (4 % off)."""
     a = Layer("a", 0.05, conductivity=0.5, density=1500.0, specific_heat=900.0, contact_resistance=0.5)
     b = Layer("b", 0.08, conductivity=0.04, density=30.0, specific_heat=1400.0)
-    wall = Wall((a, b), (Probe("a_side", 0.05, side="exterior"), Probe("b_side", 0.05, side="interior")))
+    wall = Wall(
+        (a, b),
+        (Probe("a_side", 0.05, side="exterior"), Probe("b_side", 0.05, side="interior"), Probe("contact", 0.05)),
+    )
     r_tot = 0.05 / 0.5 + 0.5 + 0.08 / 0.04  # 0.1 + 0.5 + 2.0 = 2.6 m2K/W
     inp = make_input(wall, np.full(11, 0.0), np.full(11, 26.0), 300.0, scheme=scheme)
     out = FDEngine(scheme).run(inp)
@@ -111,6 +114,30 @@ def test_contact_resistance_enters_as_its_resistance(scheme):
     # the temperature jump across the contact is q R_c = 5 K
     np.testing.assert_allclose(out.temperatures["a_side"], 0.0 - q * 0.1, atol=1e-9)
     np.testing.assert_allclose(out.temperatures["b_side"], 0.0 - q * 0.6, atol=1e-9)
+    # a probe at the contact without a side reads the mean of both sides
+    np.testing.assert_allclose(out.temperatures["contact"], 0.0 - q * 0.35, atol=1e-9)
+
+
+def test_property_arrays_by_hand():
+    from wallcal.grid import PropertyArrays
+
+    w = Wall(
+        (
+            Layer("a", 0.1, 0.5, 1500.0, 900.0, conductivity_temperature_coefficient=0.004, reference_temperature=15.0),
+            Layer("gap", 0.02, thermal_resistance=0.17),
+            Layer("b", 0.1, 0.04, 30.0, 1400.0, contact_resistance=0.2),
+        )
+    )
+    p = PropertyArrays.from_walls([w, w.replace_layer("b", conductivity=0.05)])
+    assert p.n_candidates == 2
+    np.testing.assert_array_equal(p.thickness, [[0.1, 0.02, 0.1]] * 2)
+    np.testing.assert_array_equal(p.conductivity, [[0.5, 0.0, 0.04], [0.5, 0.0, 0.05]])
+    np.testing.assert_array_equal(p.volumetric_heat_capacity, [[1.35e6, 0.0, 42000.0]] * 2)
+    np.testing.assert_array_equal(p.temperature_coefficient, [[0.004, 0.0, 0.0]] * 2)
+    np.testing.assert_array_equal(p.reference_temperature, [[15.0, 10.0, 10.0]] * 2)
+    np.testing.assert_array_equal(p.contact_resistance, [[0.0, 0.0, 0.2]] * 2)
+    np.testing.assert_array_equal(p.thermal_resistance, [[0.0, 0.17, 0.0]] * 2)
+    assert p.conductivity.dtype == float
 
 
 # ---------------------------------------------------------------------------- transient energy balance
