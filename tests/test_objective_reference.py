@@ -134,6 +134,23 @@ def test_objective_and_residuals_from_one_run(weighted_study):
     np.testing.assert_allclose(f, ev.objective(X), rtol=1e-12)
     np.testing.assert_allclose(R, ev.residuals(X), rtol=1e-12)
     assert f.shape == (2,) and R.shape == (2, len(TARGETS) * ev.y.shape[1])
+    assert ev.evaluations == 2 * 3 and ev.seconds > 0  # candidates simulated so far, and their time
+
+
+def test_evaluator_probe_depth_parameter_equals_simulate(example_study):
+    from wallcal import simulate
+    from wallcal.simulation import prepare
+
+    cal = copy.deepcopy(example_study.calibration)
+    cal["parameters"] = [{"probe": "T3A", "property": "depth", "bounds": [0.095, 0.105], "bounds_kind": "absolute"}]
+    space = parse_space(example_study, cal)
+    ev = Evaluator(prepare(example_study), space)
+    x = np.array([0.098])
+    got = float(ev.objective(x[None])[0])
+    res = simulate(example_study.replace(wall=space.wall_at(example_study.wall, x)))
+    cse = sum(float(((res.simulated[t] - res.measured[t]) ** 2).sum()) for t in space.targets)
+    assert got == pytest.approx(cse, rel=1e-6)
+    assert abs(got - float(ev.objective(np.array([[0.1]]))[0])) > 1e-3 * got
 
 
 def test_evaluator_candidates_with_lambda_t_and_contact_parameters_equal_simulate(example_study):

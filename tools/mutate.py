@@ -35,7 +35,7 @@ WORK = REPO / ".mutate"
 TESTS: dict[str, list[str]] = {
     "src/wallcal/metrics.py": ["tests/test_metrics.py"],
     "src/wallcal/wall.py": ["tests/test_wall.py", "tests/test_iso6946.py"],
-    "src/wallcal/calibration/objective.py": ["tests/test_objective_reference.py"],
+    "src/wallcal/calibration/objective.py": ["tests/test_objective_reference.py", "tests/test_flux_at_depth.py"],
     "src/wallcal/standards/iso6946.py": ["tests/test_iso6946.py"],
     "src/wallcal/standards/iso10456.py": ["tests/test_iso10456.py"],
     "src/wallcal/standards/iso13786.py": ["tests/test_iso13786.py"],
