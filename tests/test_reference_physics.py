@@ -222,3 +222,36 @@ def test_maximum_principle_with_dirichlet_faces(scheme):
     assert T.min() >= lo - 1e-9 and T.max() <= hi + 1e-9, (T.min(), T.max())
     # and the interior nodes do move over (most of) the range: the check is not vacuous
     assert T[1].min() < -10.0 and T[1].max() > 20.0
+
+
+def test_grid_layout_with_a_contact_and_a_no_mass_layer_by_hand():
+    """Nodes and links of A (10 intervals, contact 0.1 to the next layer) | air gap (no mass, one link) | B (4
+    intervals; a contact resistance on the last layer has no next layer and adds nothing)."""
+    wall = Wall(
+        (
+            Layer("A", 0.10, conductivity=1.0, density=2000.0, specific_heat=1000.0, contact_resistance=0.1),
+            Layer("gap", 0.02, thermal_resistance=0.17),
+            Layer("B", 0.05, conductivity=0.04, density=50.0, specific_heat=1000.0, contact_resistance=0.3),
+        )
+    )
+    g = build_grid(wall, 100.0, 2.0)
+    x_a = np.arange(11) * 0.01
+    np.testing.assert_allclose(g.x, np.concatenate([x_a, [0.10, 0.12], 0.12 + np.arange(1, 5) * 0.0125]), atol=1e-15)
+    assert g.nodes_per_layer == (10, 0, 4)
+    assert g.link_layer.tolist() == [0] * 10 + [-1, 1] + [2] * 4
+    assert g.link_contact_of.tolist() == [-1] * 10 + [0, -1] + [-1] * 4
+    assert g.link_intervals.tolist() == [10.0] * 10 + [0.0, 0.0] + [4.0] * 4
+    assert g.layer_first_node.tolist() == [0, 11, 12] and g.layer_last_node.tolist() == [10, 12, 16]
+    assert (
+        g.link_layer.dtype == np.int64 and g.link_contact_of.dtype == np.int64 and g.layer_first_node.dtype == np.int64
+    )
+    assert g.layer_last_node.dtype == np.int64
+    assert (g.time_step, g.grid_constant, g.rule, g.n_nodes, g.n_links) == (100.0, 2.0, "wallcal", 17, 16)
+    # a calibration that may change layer B's contact to the gap keeps a link for it even at 0
+    assert build_grid(wall, 100.0, 2.0, contact_layers={1}).link_contact_of.tolist()[12] == 1
+    from wallcal.errors import StudyError
+    from wallcal.grid import intervals_for_layer
+
+    assert intervals_for_layer(0.1, 5e-7, 100.0, 2.0) == 10  # default rule: wallcal
+    with pytest.raises(StudyError, match="simulation.node_rule: must be one of"):
+        intervals_for_layer(0.1, 5e-7, 100.0, 2.0, "cubic")
