@@ -6,6 +6,8 @@ layers), eq. (6)-(8); the study wall of the calibration paper
 Expected totals are written out by hand (sums of d / lambda) in each test.
 """
 
+import math
+
 import pytest
 
 from wallcal.errors import StudyError
@@ -315,3 +317,44 @@ def test_resolve_layers_direction_and_slight_ventilation():
     assert layers[1].thermal_resistance == pytest.approx(0.099, rel=1e-12)
     assert layers[1].conductivity is None and layers[1].density is None and layers[1].specific_heat is None
     assert layers[0] == _slight_wall().layers[0] and layers[2] == _slight_wall().layers[2]
+
+
+def test_opening_area_interpolation_passes_every_option_on():
+    wall = _slight_wall().replace_layer("w", conductivity_temperature_coefficient=0.004)
+    kw = {"direction": "downward", "rsi": 0.2, "rse": 0.06, "mean_temperature_C": 25.0}
+    un = iso6946.thermal_resistance(wall, air_layers={"gap": "unventilated"}, **kw)
+    well = iso6946.thermal_resistance(wall, air_layers={"gap": "well"}, **kw)
+    # by hand: wool at 25 degC: 0.1 / (0.04 exp(0.004 x 15)); the gap downward 0.198; Rsi 0.2, Rse 0.06
+    r_wool = 0.1 / (0.04 * math.exp(0.004 * 15.0))
+    assert un.total_resistance == pytest.approx(0.2 + 0.015 / 0.13 + 0.198 + r_wool + 0.06, rel=1e-12)
+    assert well.total_resistance == pytest.approx(0.2 + r_wool + 0.2, rel=1e-12)
+    mid = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=1000, **kw)
+    assert mid.total_resistance == pytest.approx(0.5 * (un.total_resistance + well.total_resistance), rel=1e-12)
+    assert (mid.rsi, mid.rse) == (0.2, 0.06) and mid.layers == un.layers
+    assert mid.u_value == pytest.approx(1 / mid.total_resistance)
+    # the limits of the interpolation, with the same options
+    at500 = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=500, **kw).total_resistance
+    assert at500 == pytest.approx(un.total_resistance, rel=1e-12)
+    just_above = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=500.5, **kw).total_resistance
+    assert just_above == pytest.approx(0.9995 * un.total_resistance + 0.0005 * well.total_resistance, rel=1e-12)
+    assert just_above != at500
+    at1500 = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=1500, **kw).total_resistance
+    beyond = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=1600, **kw)
+    assert at1500 == pytest.approx(well.total_resistance, rel=1e-12)
+    assert beyond.total_resistance == pytest.approx(well.total_resistance, rel=1e-12) and beyond.rse == 0.2
+
+
+def test_two_slightly_ventilated_layers_are_refused():
+    wall = Wall(
+        (
+            Layer("g1", 0.02, material="air, slightly ventilated"),
+            Layer("a", 0.1, 0.04, 30, 1000, "wool"),
+            Layer("g2", 0.02, material="air, slightly ventilated"),
+            Layer("b", 0.02, 0.2, 500, 1600, "panel"),
+        )
+    )
+    with pytest.raises(StudyError, match="air_layers: 2 slightly ventilated air layers; ISO 6946 treats one"):
+        iso6946.thermal_resistance(wall)
+    # zero surface resistances are allowed (a surface-to-surface figure), negative ones are not
+    res = iso6946.thermal_resistance(_slight_wall(panel=0.01), rsi=0.0, rse=0.0)
+    assert res.total_resistance == pytest.approx(res.resistance)
