@@ -110,6 +110,12 @@ def test_evaluator_objective_matches_a_hand_sum_over_the_simulated_series(weight
         )
     # the batch engine and the user's simulate() agree to round-off on the same grid
     assert got == pytest.approx(sum(terms), rel=1e-8)
+    # per target: CSE and RMSE (what the sensitivity analysis ranks)
+    cse_t, rmse_t = ev.per_target(space.base[None])
+    for k, t in enumerate(TARGETS):
+        e = (res.simulated[t] - res.measured[t]).dropna().to_numpy()
+        assert cse_t[0, k] == pytest.approx(np.sum(e**2), rel=1e-8)
+        assert rmse_t[0, k] == pytest.approx(np.sqrt(np.mean(e**2)), rel=1e-8)
     # the least-squares residuals: sum(r^2) is the objective (squared-error kinds) or its smooth surrogate
     r = ev.residuals(space.base[None])
     ssr = float((r**2).sum())
