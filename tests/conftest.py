@@ -8,6 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from skip_policy import (  # noqa: F401  (the skip policy's hooks: CI fails on a skip that is not allow-listed)
+    pytest_make_collect_report,
+    pytest_runtest_makereport,
+    pytest_terminal_summary,
+)
 from wallcal.engines.base import BoundaryInput, EngineOptions, SimulationInput
 from wallcal.wall import Layer, Probe, Wall
 

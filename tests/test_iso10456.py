@@ -20,6 +20,7 @@ def test_mineral_wool_to_measured_mean_temperature():
     got = convert_conductivity(0.035, 10.0, 23.65, 0.0046)
     assert got == pytest.approx(expected, rel=1e-12)
     assert got == pytest.approx(0.03727, abs=5e-6)
+    assert isinstance(got, float)  # a scalar in, a Python float out (not a 0-d array)
     # The paper states 0.0375 for its LD wool: within 0.7 % of this conversion (the paper's
     # figure is rounded and its exact f_T / mean temperature are not given).
     assert abs(got - 0.0375) / 0.0375 < 0.007

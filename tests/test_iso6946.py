@@ -2,9 +2,11 @@
 
 References: ISO 6946:2017 Table 7 (surface resistances), Table 8 (unventilated air
 layers), eq. (6)-(8); the study wall of the calibration paper
-(/work/shared/reference/wall_calibration_paper.md, Tables I and II, design U 0.12).
+(../shared/reference/wall_calibration_paper.md relative to the repository, Tables I and II, design U 0.12).
 Expected totals are written out by hand (sums of d / lambda) in each test.
 """
+
+import math
 
 import pytest
 
@@ -161,3 +163,198 @@ def test_resolve_layers_for_iso13786():
     assert layers[1].is_massless and layers[1].thermal_resistance == pytest.approx(0.09)
     layers, cut = iso6946.resolve_layers(study_wall(), air_layers={"2": "well"})
     assert cut and [layer.id for layer in layers] == ["3", "4", "5", "6", "7", "8", "9"]
+
+
+# ---------------------------------------------------------------------------- air-layer detection and breakdown
+@pytest.mark.parametrize(
+    "material,expected",
+    [
+        ("Air gap, well-ventilated", "well_ventilated"),
+        ("air gap, well_ventilated", "well_ventilated"),
+        ("AIR LAYER (Slightly-Ventilated)", "slightly_ventilated"),
+        ("air cavity, slightly_ventilated", "slightly_ventilated"),
+        ("unventilated air space", "unventilated"),
+        ("air space, not ventilated", "unventilated"),
+        ("still air", "unventilated"),
+    ],
+)
+def test_ventilation_read_from_the_material_text(material, expected):
+    wall = Wall((Layer("a", 0.1, 0.04, 30, 1000, "wool"), Layer("gap", 0.03, material=material)))
+    assert iso6946.find_air_layers(wall) == {"gap": expected}
+
+
+def test_air_layer_problems_are_all_reported():
+    wall = Wall(
+        (
+            Layer("a", 0.1, 0.04, 30, 1000, "wool"),
+            Layer("gap", 0.4, material="air, unventilated"),  # too thick for Table 8
+            Layer("b", 0.02, 0.2, 500, 1600, "panel"),
+        )
+    )
+    with pytest.raises(StudyError) as exc:
+        iso6946.find_air_layers(wall)
+    assert exc.value.problems == [
+        "air_layers['gap']: an ISO 6946 air layer must be > 0 and <= 0.3 m thick, got thickness 0.4 m"
+    ]
+    with pytest.raises(StudyError) as exc:
+        iso6946.find_air_layers(wall, {"gp": "slightly", "b": "sometimes"})
+    text = "\n".join(exc.value.problems)
+    assert "air_layers['gp']: no layer with this id; did you mean 'gap'" in text
+    assert "air_layers['b']: unknown ventilation 'sometimes'" in text
+
+
+@pytest.mark.parametrize(
+    "alias,canonical",
+    [
+        ("un", "unventilated"),
+        ("none", "unventilated"),
+        ("Slightly", "slightly_ventilated"),
+        ("well-ventilated", "well_ventilated"),
+        ("well ventilated", "well_ventilated"),
+    ],
+)
+def test_ventilation_aliases(alias, canonical):
+    assert iso6946.normalize_ventilation(alias) == canonical
+
+
+def test_air_layer_resistance_by_direction_table_8():
+    # 50 mm: 0.16 upward, 0.18 horizontal, 0.21 downward (ISO 6946:2017 Table 8); slightly ventilated: half
+    assert iso6946.air_layer_resistance(0.05, "unventilated", "upward") == pytest.approx(0.16)
+    assert iso6946.air_layer_resistance(0.05, "unventilated", "downward") == pytest.approx(0.21)
+    assert iso6946.air_layer_resistance(0.05) == pytest.approx(0.18)
+    assert iso6946.air_layer_resistance(0.05, "slightly", "downward") == pytest.approx(0.105)
+    assert iso6946.air_layer_resistance(0.05, "well", "downward") == 0.0
+    with pytest.raises(StudyError, match="unknown heat-flow direction 'sideways'"):
+        iso6946.surface_resistances("sideways")
+
+
+def test_breakdown_kinds_and_direction():
+    wall = Wall(
+        (
+            Layer("a", 0.1, 0.04, 30, 1000, "wool", contact_resistance=0.05),
+            Layer("gap", 0.05, material="air, unventilated"),
+            Layer("m", 0.0, thermal_resistance=0.2, material="membrane"),
+            Layer("b", 0.02, 0.2, 500, 1600, "panel"),
+        )
+    )
+    res = iso6946.thermal_resistance(wall, direction="downward")
+    assert [(b.id, b.kind) for b in res.layers] == [
+        ("a", "material"),
+        ("a/contact", "contact"),
+        ("gap", "air:unventilated"),
+        ("m", "no-mass"),
+        ("b", "material"),
+    ]
+    assert [b.resistance for b in res.layers] == pytest.approx([2.5, 0.05, 0.21, 0.2, 0.1])
+    assert (res.rsi, res.rse) == (0.17, 0.04)  # downward heat flow: Rsi 0.17
+    assert res.total_resistance == pytest.approx(0.17 + 2.5 + 0.05 + 0.21 + 0.2 + 0.1 + 0.04)
+    assert res.u_value == pytest.approx(1 / res.total_resistance)
+    hot = iso6946.thermal_resistance(wall, mean_temperature_C=10.0)
+    assert [b.kind for b in hot.layers][0] == "material" and hot.layers[3].kind == "no-mass"
+    # explicit surface resistances override the table
+    res2 = iso6946.thermal_resistance(wall, rsi=0.2, rse=0.1)
+    assert (res2.rsi, res2.rse) == (0.2, 0.1)
+    assert iso6946.u_value(wall, rsi=0.2, rse=0.1) == pytest.approx(res2.u_value)
+
+
+def _slight_wall(panel=0.015, contact=0.0):
+    return Wall(
+        (
+            Layer("p", panel, 0.13, 500, 1600, "panel", contact_resistance=contact),
+            Layer("gap", 0.035, material="air, slightly ventilated"),
+            Layer("w", 0.1, 0.04, 135, 1030, "wool"),
+        )
+    )
+
+
+def test_slightly_ventilated_half_rule_and_cap_by_hand():
+    # panel 0.015 / 0.13 = 0.11538; with Rse 0.04 that is 0.15538 > 0.15: scaled to 0.15 - 0.04 = 0.11
+    # gap 35 mm: Table 8 horizontal 0.18 (25..50 mm), half = 0.09; wool 2.5 -> R = 2.7, R_T = 2.87
+    res = iso6946.thermal_resistance(_slight_wall())
+    assert [(b.id, b.kind) for b in res.layers] == [
+        ("p", "material(capped)"),
+        ("gap", "air:slightly_ventilated"),
+        ("w", "material"),
+    ]
+    assert [b.resistance for b in res.layers] == pytest.approx([0.11, 0.09, 2.5], rel=1e-12)
+    assert res.total_resistance == pytest.approx(2.87, rel=1e-12)
+    assert any("capped at 0.15" in n for n in res.notes) and any("half the Table 8" in n for n in res.notes)
+    # a thinner panel (0.0769 + 0.04 < 0.15) is not capped
+    thin = iso6946.thermal_resistance(_slight_wall(panel=0.01))
+    assert thin.layers[0].kind == "material" and thin.layers[0].resistance == pytest.approx(0.01 / 0.13)
+    assert not any("capped" in n for n in thin.notes)
+    # a contact resistance outside the air layer is capped with the panel: 0.11538 + 0.02 -> scaled to 0.11
+    c = iso6946.thermal_resistance(_slight_wall(contact=0.02))
+    assert c.layers[0].resistance + c.layers[1].resistance == pytest.approx(0.11, rel=1e-12)
+    assert c.layers[1].kind == "contact(capped)"
+    with pytest.raises(StudyError, match="exceeds the 0.15 m2K/W cap"):
+        iso6946.thermal_resistance(_slight_wall(), rse=0.2)
+
+
+def test_opening_area_limits_and_errors():
+    un = iso6946.thermal_resistance(_slight_wall(), air_layers={"gap": "unventilated"})
+    well = iso6946.thermal_resistance(_slight_wall(), air_layers={"gap": "well"})
+    assert iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=400).total_resistance == pytest.approx(
+        un.total_resistance
+    )
+    assert iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=1600).total_resistance == pytest.approx(
+        well.total_resistance
+    )
+    mid = iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=750)
+    assert mid.total_resistance == pytest.approx(0.75 * un.total_resistance + 0.25 * well.total_resistance)
+    assert mid.resistance == pytest.approx(mid.total_resistance - 0.13 - 0.04)
+    assert "A_v = 750 mm2/m" in mid.notes[0]
+    with pytest.raises(StudyError, match="exactly one slightly ventilated air layer, found 0"):
+        iso6946.thermal_resistance(_slight_wall(), air_layers={"gap": "unventilated"}, opening_area_mm2_per_m=900)
+    with pytest.raises(StudyError, match="surface resistances must be >= 0"):
+        iso6946.thermal_resistance(_slight_wall(), rsi=-0.1)
+
+
+def test_resolve_layers_direction_and_slight_ventilation():
+    layers, cut = iso6946.resolve_layers(_slight_wall(), direction="downward")
+    assert not cut and layers[1].is_massless
+    # 35 mm downward: Table 8 interpolated between 25 mm (0.19) and 50 mm (0.21) = 0.198, halved = 0.099
+    assert layers[1].thermal_resistance == pytest.approx(0.099, rel=1e-12)
+    assert layers[1].conductivity is None and layers[1].density is None and layers[1].specific_heat is None
+    assert layers[0] == _slight_wall().layers[0] and layers[2] == _slight_wall().layers[2]
+
+
+def test_opening_area_interpolation_passes_every_option_on():
+    wall = _slight_wall().replace_layer("w", conductivity_temperature_coefficient=0.004)
+    kw = {"direction": "downward", "rsi": 0.2, "rse": 0.06, "mean_temperature_C": 25.0}
+    un = iso6946.thermal_resistance(wall, air_layers={"gap": "unventilated"}, **kw)
+    well = iso6946.thermal_resistance(wall, air_layers={"gap": "well"}, **kw)
+    # by hand: wool at 25 degC: 0.1 / (0.04 exp(0.004 x 15)); the gap downward 0.198; Rsi 0.2, Rse 0.06
+    r_wool = 0.1 / (0.04 * math.exp(0.004 * 15.0))
+    assert un.total_resistance == pytest.approx(0.2 + 0.015 / 0.13 + 0.198 + r_wool + 0.06, rel=1e-12)
+    assert well.total_resistance == pytest.approx(0.2 + r_wool + 0.2, rel=1e-12)
+    mid = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=1000, **kw)
+    assert mid.total_resistance == pytest.approx(0.5 * (un.total_resistance + well.total_resistance), rel=1e-12)
+    assert (mid.rsi, mid.rse) == (0.2, 0.06) and mid.layers == un.layers
+    assert mid.u_value == pytest.approx(1 / mid.total_resistance)
+    # the limits of the interpolation, with the same options
+    at500 = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=500, **kw).total_resistance
+    assert at500 == pytest.approx(un.total_resistance, rel=1e-12)
+    just_above = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=500.5, **kw).total_resistance
+    assert just_above == pytest.approx(0.9995 * un.total_resistance + 0.0005 * well.total_resistance, rel=1e-12)
+    assert just_above != at500
+    at1500 = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=1500, **kw).total_resistance
+    beyond = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=1600, **kw)
+    assert at1500 == pytest.approx(well.total_resistance, rel=1e-12)
+    assert beyond.total_resistance == pytest.approx(well.total_resistance, rel=1e-12) and beyond.rse == 0.2
+
+
+def test_two_slightly_ventilated_layers_are_refused():
+    wall = Wall(
+        (
+            Layer("g1", 0.02, material="air, slightly ventilated"),
+            Layer("a", 0.1, 0.04, 30, 1000, "wool"),
+            Layer("g2", 0.02, material="air, slightly ventilated"),
+            Layer("b", 0.02, 0.2, 500, 1600, "panel"),
+        )
+    )
+    with pytest.raises(StudyError, match="air_layers: 2 slightly ventilated air layers; ISO 6946 treats one"):
+        iso6946.thermal_resistance(wall)
+    # zero surface resistances are allowed (a surface-to-surface figure), negative ones are not
+    res = iso6946.thermal_resistance(_slight_wall(panel=0.01), rsi=0.0, rse=0.0)
+    assert res.total_resistance == pytest.approx(res.resistance)

@@ -190,3 +190,76 @@ def test_bad_data():
         iso9869.average_method(t2, q, ti, te)
     with pytest.raises(StudyError, match="q_side"):
         iso9869.average_method(t, q, ti, te, q_side="middle")
+
+
+# ---------------------------------------------------------------------------- the criteria table, field by field
+def test_criteria_table_of_a_steady_heavy_test_by_hand():
+    res = iso9869.average_method(*steady(72), wall=heavy_wall())
+    rows = [(c.name, c.description, c.required, c.passed, c.value, c.limit) for c in res.verdict.criteria]
+    assert rows == [
+        ("duration", "test duration >= 72 h", True, True, pytest.approx(72.0), 72.0),
+        ("last_24h", "final R within 5 % of R 24 h earlier", True, True, pytest.approx(0.0, abs=1e-12), 0.05),
+        (
+            "first_last_two_thirds",
+            "R of the first and of the last INT(2 DT/3) days within 5 %",
+            True,
+            True,
+            pytest.approx(0.0, abs=1e-12),
+            0.05,
+        ),
+        (
+            "storage",
+            "change of stored heat < 5 % of the heat through the element (heavy elements)",
+            True,
+            True,
+            0.0,
+            0.05,
+        ),
+        ("whole_days", "duration an integer multiple of 24 h (heavy elements)", True, True, pytest.approx(72.0), 24.0),
+    ]
+    d = {c.name: c.detail for c in res.verdict.criteria}
+    assert d["duration"] == "N = 432 readings x dt = 600 s"  # 72 h / 10 min
+    assert d["last_24h"] == "R_end = 2.5, R_end-24h = 2.5 m2K/W"
+    assert d["first_last_two_thirds"] == "2 day(s): R_first = 2.5, R_last = 2.5 m2K/W"  # INT(2 x 3 / 3) = 2
+    assert d["whole_days"] == "duration 72 h"
+    assert d["storage"].startswith("dQ_stored = 0 J/m2") and "heat through = 2.074e+06 J/m2" in d["storage"]
+    assert res.stored_heat_change_J_m2 == 0.0 and res.heat_through_J_m2 == pytest.approx(8.0 * 72 * 3600)
+    assert res.areal_heat_capacity == pytest.approx(30 * 1000 * 0.1 + 2400 * 1000 * 0.2)
+
+
+def test_criteria_edge_cases():
+    # 420 s readings do not divide 24 h: b) cannot be evaluated, c) has no whole number of readings per day
+    t, q, ti, te = steady(84, dt=420.0)
+    res = iso9869.average_method(t, q, ti, te, heavy=False)
+    c = res.verdict["last_24h"]
+    assert (c.passed, c.value, c.detail) == (None, None, "dt = 420 s does not divide 24 h")
+    assert res.verdict["first_last_two_thirds"].passed is False
+    assert res.verdict.applicable is False and res.verdict.statement == "not applicable: fails first_last_two_thirds"
+    # shorter than 24 h: b) and c) fail, with their reason
+    res = iso9869.average_method(*steady(12), heavy=False)
+    assert res.verdict["last_24h"].passed is False and res.verdict["last_24h"].detail == "test shorter than 24 h"
+    c = res.verdict["first_last_two_thirds"]
+    assert c.passed is False and c.detail == "INT(2 DT/3) = 0 day(s): not enough data"
+    assert res.verdict.statement == "not applicable: fails duration, last_24h, first_last_two_thirds"
+    # without a wall and without heavy=: the statement says the weight is unknown
+    res = iso9869.average_method(*steady(96))
+    assert res.verdict.statement.endswith("(element weight unknown: heavy-element criteria required)")
+    assert res.verdict["storage"].detail == "not evaluated: pass wall= to estimate the stored heat"
+    assert res.verdict["storage"].required is True
+    # exactly 72 h passes a), a tolerance changes b)-d)'s limit
+    res = iso9869.average_method(*steady(72), heavy=False, tolerance=0.1, min_duration_h=48.0)
+    assert res.verdict["duration"].limit == 48.0 and res.verdict["last_24h"].limit == 0.1
+    assert res.verdict["duration"].description == "test duration >= 48 h"
+    # two readings are enough to compute R
+    t, q, ti, te = steady(1.0 / 3)  # 2 readings of 10 min
+    assert t.size == 2 and iso9869.average_method(t, q, ti, te, heavy=False).r_value == pytest.approx(2.5)
+    with pytest.raises(DataError, match="need at least 2 readings, got 1"):
+        iso9869.average_method(t[:1], q[:1], ti[:1], te[:1])
+
+
+def test_heavy_threshold_is_strictly_above_20_kJ():
+    # 20 kJ/(m2K) exactly is light: heavy = C > 20 kJ/(m2K)
+    wall = Wall((Layer("a", 0.1, 0.5, 200.0, 1000.0),))
+    assert iso9869.average_method(*steady(72), wall=wall).heavy is False
+    wall = Wall((Layer("a", 0.1, 0.5, 200.1, 1000.0),))
+    assert iso9869.average_method(*steady(72), wall=wall).heavy is True

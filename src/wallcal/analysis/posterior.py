@@ -34,6 +34,7 @@ import pandas as pd
 from .identifiability import verdict
 
 DEFAULT_STEPS = 1500
+nan = float("nan")
 
 
 # ============================================================================ likelihood
@@ -377,7 +378,7 @@ def posterior(
     from . import reference_values, space_with_targets
     from .identifiability import sensor_sigma
 
-    emcee = require("emcee", "analysis")
+    require("emcee", "analysis")  # a clear error when the analysis extra is missing
     space = space_with_targets(study, parse_space(study), targets)
     x_start = space.base if x_start is None else np.asarray(x_start, dtype=float)
     prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the posterior sampling")
@@ -428,10 +429,7 @@ def posterior(
         steps = max(0, steps - len(prev_chain))
     else:
         p0 = initial_walkers(study, space, x_start, nw, init_spread, rng)
-    sampler = emcee.EnsembleSampler(
-        nw, n, like, vectorize=True, moves=[(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-    )
-    sampler.random_state = np.random.RandomState(seed).get_state()
+    sampler = ensemble_sampler(like, nw, n, seed)
     prog = Progress("posterior (emcee)", enabled=progress)
     t0 = time.perf_counter()
     status = "complete"
@@ -485,6 +483,40 @@ def posterior(
     return res
 
 
+def ensemble_sampler(like, walkers: int, n: int, seed: int):
+    """The emcee ensemble sampler of :func:`posterior`: vectorised log-probability ``like`` (unit coordinates),
+    differential-evolution moves (80 % DE, 20 % DE snooker), seeded."""
+    import emcee
+
+    sampler = emcee.EnsembleSampler(
+        walkers, n, like, vectorize=True, moves=[(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+    )
+    sampler.random_state = np.random.RandomState(seed).get_state()
+    return sampler
+
+
+def burn_and_thin(chain: np.ndarray, acceptance: float = nan) -> tuple[np.ndarray, int, int, list]:
+    """Integrated autocorrelation time per parameter [steps], burn-in and thinning of a chain (steps, walkers, n),
+    and the warnings on its length and acceptance."""
+    import emcee
+
+    nsteps = chain.shape[0]
+    warnings = []
+    tau = emcee.autocorr.integrated_time(chain, quiet=True, tol=50) if nsteps > 10 else np.full(chain.shape[2], nan)
+    tau = np.asarray(tau, dtype=float)
+    tmax = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
+    if nsteps < 50 * tmax:
+        warnings.append(
+            f"chain too short for reliable intervals: {nsteps} steps < 50 x the largest integrated "
+            f"autocorrelation time ({tmax:.0f} steps); run longer (--steps) or --resume"
+        )
+    if np.isfinite(acceptance) and not 0.1 <= acceptance <= 0.7:
+        warnings.append(f"acceptance fraction {acceptance:.2f} is outside 0.1..0.7")
+    burn = int(min(max(2 * tmax, nsteps // 3), nsteps // 2))
+    thin = max(1, int(0.5 * np.nanmin(tau))) if np.isfinite(tau).any() else 1
+    return tau, burn, thin, warnings
+
+
 def summarise(
     study,
     space,
@@ -502,22 +534,7 @@ def summarise(
     seed=1,
 ) -> PosteriorResult:
     """Burn-in, thinning, diagnostics, per-parameter and derived summaries, non-uniqueness demonstration."""
-    import emcee
-
-    nsteps = chain.shape[0]
-    warnings = []
-    tau = emcee.autocorr.integrated_time(chain, quiet=True, tol=50) if nsteps > 10 else np.full(chain.shape[2], nan)
-    tau = np.asarray(tau, dtype=float)
-    tmax = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
-    if nsteps < 50 * tmax:
-        warnings.append(
-            f"chain too short for reliable intervals: {nsteps} steps < 50 x the largest integrated "
-            f"autocorrelation time ({tmax:.0f} steps); run longer (--steps) or --resume"
-        )
-    if np.isfinite(acceptance) and not 0.1 <= acceptance <= 0.7:
-        warnings.append(f"acceptance fraction {acceptance:.2f} is outside 0.1..0.7")
-    burn = int(min(max(2 * tmax, nsteps // 3), nsteps // 2))
-    thin = max(1, int(0.5 * np.nanmin(tau))) if np.isfinite(tau).any() else 1
+    tau, burn, thin, warnings = burn_and_thin(chain, acceptance)
     flat_u = chain[burn::thin].reshape(-1, chain.shape[2])
     X = space.from_unit(flat_u)
     rng = np.random.default_rng(seed)
@@ -596,9 +613,6 @@ def summarise(
         warnings=warnings,
         truth=truth,
     )
-
-
-nan = float("nan")
 
 
 def _accuracy(study, name, y) -> float:

@@ -89,6 +89,49 @@ class SensitivityResult:
         plot_sensitivity(self, d / f"sensitivity_{self.method}.png")
 
 
+# ---------------------------------------------------------------------------- the estimators (arrays in, indices out)
+# ``problem`` is SALib's dict: {"num_vars": n, "names": [...], "bounds": [[lower, upper], ...]}.
+def morris_sample(problem: dict, r: int, levels: int, seed: int) -> np.ndarray:
+    """Morris design: ``r`` trajectories of ``n + 1`` points on a ``levels``-level grid, shape (r (n + 1), n)."""
+    from SALib.sample import morris as ms
+
+    return ms.sample(problem, r, num_levels=levels, seed=seed)
+
+
+def morris_indices(problem: dict, X: np.ndarray, Y: np.ndarray, levels: int, seed: int) -> pd.DataFrame:
+    """Elementary-effect statistics of the outputs ``Y`` of the design ``X``: mu* (mean |EE|), sigma (sd of
+    EE), mu (mean EE), each in units of Y per unit of the normalised parameter range, and a bootstrap 95 %
+    half-width of mu*; one row per parameter."""
+    from SALib.analyze import morris as ma
+
+    a = ma.analyze(problem, X, np.asarray(Y, dtype=float), num_levels=levels, seed=seed, print_to_console=False)
+    return pd.DataFrame(
+        {"mu_star": a["mu_star"], "sigma": a["sigma"], "mu": a["mu"], "mu_star_conf": a["mu_star_conf"]},
+        index=pd.Index(problem["names"], name="parameter"),
+    )
+
+
+def sobol_sample(problem: dict, N: int, seed: int, second_order: bool = False) -> np.ndarray:
+    """Saltelli's design for Sobol' indices: N (n + 2) points (N (2 n + 2) with second order)."""
+    from SALib.sample import sobol as ss
+
+    return ss.sample(problem, N, calc_second_order=second_order, seed=seed)
+
+
+def sobol_indices(problem: dict, Y: np.ndarray, seed: int, second_order: bool = False) -> pd.DataFrame:
+    """First-order S1 and total ST Sobol' indices of the outputs ``Y`` of :func:`sobol_sample`'s design, with
+    bootstrap 95 % half-widths (S1_conf, ST_conf); one row per parameter."""
+    from SALib.analyze import sobol as sa
+
+    a = sa.analyze(
+        problem, np.asarray(Y, dtype=float), calc_second_order=second_order, seed=seed, print_to_console=False
+    )
+    return pd.DataFrame(
+        {"ST": a["ST"], "ST_conf": a["ST_conf"], "S1": a["S1"], "S1_conf": a["S1_conf"]},
+        index=pd.Index(problem["names"], name="parameter"),
+    )
+
+
 def _evaluate(ev, X, prog, chunk=1024):
     """Objective and per-target RMSE of many candidates, in engine batches of ``chunk``."""
     objs, rmses = [], []
@@ -191,37 +234,22 @@ def sensitivity(
         require("SALib", "analysis")
         problem = {"num_vars": space.n, "names": names, "bounds": [[p.lower, p.upper] for p in space.parameters]}
         if method == "morris":
-            from SALib.analyze import morris as ma
-            from SALib.sample import morris as ms
-
-            r = int(n or 32)
-            X = ms.sample(problem, r, num_levels=levels, seed=seed)
+            X = morris_sample(problem, int(n or 32), levels, seed)
             obj, rmse = _evaluate(ev, X, prog, chunk)
 
             def analyze(Y):
-                a = ma.analyze(problem, X, Y, num_levels=levels, seed=seed, print_to_console=False)
-                return pd.DataFrame(
-                    {"mu_star": a["mu_star"], "sigma": a["sigma"], "mu": a["mu"], "mu_star_conf": a["mu_star_conf"]},
-                    index=pd.Index(names, name="parameter"),
-                )
+                return morris_indices(problem, X, Y, levels, seed)
 
             measure = "mu_star"
         else:
-            from SALib.analyze import sobol as sa
-            from SALib.sample import sobol as ss
-
             N = int(n or 256)
             if N & (N - 1):
                 raise StudyError([f"--samples: the Sobol base sample must be a power of 2, got {N}"])
-            X = ss.sample(problem, N, calc_second_order=second_order, seed=seed)
+            X = sobol_sample(problem, N, seed, second_order)
             obj, rmse = _evaluate(ev, X, prog, chunk)
 
             def analyze(Y):
-                a = sa.analyze(problem, Y, calc_second_order=second_order, seed=seed, print_to_console=False)
-                return pd.DataFrame(
-                    {"ST": a["ST"], "ST_conf": a["ST_conf"], "S1": a["S1"], "S1_conf": a["S1_conf"]},
-                    index=pd.Index(names, name="parameter"),
-                )
+                return sobol_indices(problem, Y, seed, second_order)
 
             measure = "ST"
         ok = np.isfinite(obj)

@@ -22,6 +22,57 @@ from ..simulation import Prepared
 from .space import ParameterSpace
 
 
+def accuracy_scale(accuracy: float | None, accuracy_relative: float | None, y: np.ndarray) -> float:
+    """A sensor's accuracy [unit of the signal] for ``rmse_accuracy``: the absolute one, else the relative one
+    times the effective value sqrt(mean(y^2)) of its valid measured samples ``y``."""
+    if accuracy is not None:
+        return float(accuracy)
+    return float(accuracy_relative) * float(np.sqrt(np.mean(np.asarray(y, dtype=float) ** 2)))
+
+
+def objective_value(kind: str, cse, n_valid, weights, scale) -> np.ndarray:
+    """The objective ``kind`` (module docstring) from the CSE per candidate and target.
+
+    Parameters
+    ----------
+    kind : {"cse", "weighted_cse", "weighted_rmse", "rmse_accuracy"}
+    cse : ndarray, shape (c, n_targets)
+        Sum of squared errors per candidate and target [unit^2].
+    n_valid : ndarray, shape (n_targets,)
+        Valid samples per target.
+    weights, scale : sequence, length n_targets
+        Sensor weights [-] and accuracies [unit] (``scale`` is used by ``rmse_accuracy`` only).
+
+    Returns
+    -------
+    ndarray, shape (c,)
+    """
+    cse = np.asarray(cse, dtype=float)
+    rmse = np.sqrt(cse / np.asarray(n_valid)[None])
+    w = np.asarray(weights, dtype=float)[None]
+    if kind == "cse":
+        return cse.sum(axis=1)
+    if kind == "weighted_cse":
+        return (w * cse).sum(axis=1)
+    if kind == "weighted_rmse":
+        return (w * rmse).sum(axis=1)
+    return (rmse / np.asarray(scale, dtype=float)[None]).sum(axis=1)
+
+
+def residual_weights(kind: str, n_valid, weights, scale) -> np.ndarray:
+    """Per-target weights ``w`` of the squared errors in the least-squares residuals ``r = e sqrt(w)``: sum(r^2) is
+    the objective for ``cse`` / ``weighted_cse``, and sum_i w_i RMSE_i^2 (``weighted_rmse``) or
+    sum_i (RMSE_i / accuracy_i)^2 (``rmse_accuracy``), a smooth surrogate, for the RMSE-type objectives."""
+    n_valid = np.asarray(n_valid, dtype=float)
+    if kind == "weighted_cse":
+        return np.asarray(weights, dtype=float)
+    if kind == "weighted_rmse":
+        return np.asarray(weights, dtype=float) / n_valid
+    if kind == "rmse_accuracy":
+        return 1.0 / (np.asarray(scale, dtype=float) ** 2 * n_valid)
+    return np.ones(len(n_valid))
+
+
 class Evaluator:
     """Runs candidate parameter vectors through the engine's batch interface and scores them.
 
@@ -78,12 +129,9 @@ class Evaluator:
             self.y.append(np.where(ok, y, 0.0))
             self.mask.append(ok)
             self.weights.append(s.weight)
-            if space.objective == "rmse_accuracy":
-                y_eff = float(np.sqrt(np.mean(y[ok] ** 2)))
-                acc = s.accuracy if s.accuracy is not None else s.accuracy_relative * y_eff
-                self.scale.append(acc)
-            else:
-                self.scale.append(1.0)
+            self.scale.append(
+                accuracy_scale(s.accuracy, s.accuracy_relative, y[ok]) if space.objective == "rmse_accuracy" else 1.0
+            )
         self.y = np.array(self.y)
         self.mask = np.array(self.mask)
         self.n_valid = self.mask.sum(axis=1)
@@ -122,16 +170,7 @@ class Evaluator:
         return cse, np.sqrt(cse / self.n_valid[None])
 
     def objective_from(self, cse: np.ndarray) -> np.ndarray:
-        rmse = np.sqrt(cse / self.n_valid[None])
-        w = np.asarray(self.weights)[None]
-        obj = self.space.objective
-        if obj == "cse":
-            return cse.sum(axis=1)
-        if obj == "weighted_cse":
-            return (w * cse).sum(axis=1)
-        if obj == "weighted_rmse":
-            return (w * rmse).sum(axis=1)
-        return (rmse / np.asarray(self.scale)[None]).sum(axis=1)
+        return objective_value(self.space.objective, cse, self.n_valid, self.weights, self.scale)
 
     def objective(self, X: np.ndarray) -> np.ndarray:
         """Objective of every candidate (see module docstring), shape (c,)."""
@@ -154,12 +193,6 @@ class Evaluator:
         """
         e = self.errors(X)
         self._last_cse = np.einsum("ctk,ctk->ct", e, e)
-        w = np.ones(len(self.keys))
-        if self.space.objective == "weighted_cse":
-            w = np.asarray(self.weights, dtype=float)
-        elif self.space.objective in ("weighted_rmse", "rmse_accuracy"):
-            sc = np.asarray(self.scale if self.space.objective == "rmse_accuracy" else np.ones(len(self.keys)))
-            ww = np.asarray(self.weights) if self.space.objective == "weighted_rmse" else np.ones(len(self.keys))
-            w = ww / (sc**2 * self.n_valid)
+        w = residual_weights(self.space.objective, self.n_valid, self.weights, self.scale)
         r = e * np.sqrt(w)[None, :, None]
         return r.reshape(e.shape[0], -1)  # missing samples carry a zero residual
