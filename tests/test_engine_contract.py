@@ -251,3 +251,27 @@ def test_grid_study_of_an_energyplus_study_runs_fd_cn_and_says_why(example_study
     assert res.engine == "fd-cn"
     assert "time_step = 300 s gives 12" in res.note and "the grid study uses fd-cn" in res.note
     assert res.note in res.summary() and res.to_json()["engine"] == "fd-cn"
+
+
+def test_a_run_starts_from_a_given_state_and_returns_its_end_state():
+    """initial_state / final_state: two halves of a run, the second started from the first's end state,
+    equal the whole run (to round-off); an engine without the capability refuses a given state."""
+    from wallcal.engines.reference import ReferenceEngine
+
+    wall = three_layer_wall()
+    t = np.arange(1441) * 60.0
+    te = 5 + 15 * np.sin(2 * np.pi * t / 86400)
+    whole = make_input(wall, te, np.full(1441, 20.0), 60.0, out_every=1440)
+    first = make_input(wall, te[:721], np.full(721, 20.0), 60.0, out_every=720)
+    second = make_input(wall, te[720:], np.full(721, 20.0), 60.0, out_every=720)
+    eng = get_engine("fd-cn")
+    a = eng.run(eng.prepare(first))
+    b = eng.run(eng.prepare(second), initial_state=a.final_state)
+    c = eng.run(eng.prepare(whole))
+    np.testing.assert_allclose(b.final_state, c.final_state, rtol=0, atol=1e-9)
+    for name in c.temperatures:
+        assert abs(b.temperatures[name][-1] - c.temperatures[name][-1]) < 1e-9
+    batch = eng.run(eng.prepare(second), [wall, wall], initial_state=a.final_state)
+    np.testing.assert_allclose(batch.final_state[1], c.final_state, rtol=0, atol=1e-9)
+    with pytest.raises(EngineError, match="cannot start from a given state"):
+        ReferenceEngine().run(first, initial_state=a.final_state)

@@ -177,26 +177,34 @@ class EngineOutput:
         positive towards the interior, at the output times.
     info : dict
         Engine facts worth reporting (path used, node count, energy-balance residual...).
+    final_state : ndarray or None
+        Node temperatures [degC] on the engine's own grid at the end of the run (engines with the
+        ``initial_state`` capability): what a later run may start from (a periodic year).
     """
 
     temperatures: dict[str, np.ndarray]
     fluxes: dict[str, np.ndarray]
     info: dict = field(default_factory=dict)
+    final_state: np.ndarray | None = None
 
 
 @dataclass
 class BatchOutput:
     """What an engine returns for a batch of walls: the arrays of :class:`EngineOutput` with a
-    leading candidate axis, shape (n_candidates, n_times) each."""
+    leading candidate axis, shape (n_candidates, n_times) each (``final_state``: (n_candidates, n_nodes))."""
 
     temperatures: dict[str, np.ndarray]
     fluxes: dict[str, np.ndarray]
     info: dict = field(default_factory=dict)
+    final_state: np.ndarray | None = None
 
     def output(self, c: int) -> EngineOutput:
         """The :class:`EngineOutput` of candidate ``c``."""
         return EngineOutput(
-            {k: v[c] for k, v in self.temperatures.items()}, {k: v[c] for k, v in self.fluxes.items()}, dict(self.info)
+            {k: v[c] for k, v in self.temperatures.items()},
+            {k: v[c] for k, v in self.fluxes.items()},
+            dict(self.info),
+            None if self.final_state is None else self.final_state[c],
         )
 
 
@@ -276,6 +284,9 @@ class Capabilities:
         Engine that runs what this one cannot (e.g. batches), verified against this one.
     substitute_verified : str
         How the substitute was verified against this engine (said wherever it is used).
+    initial_state : bool
+        A run may start from given node temperatures (``run(..., initial_state=...)``) and returns
+        its end state (``final_state``): periodic runs such as a weather year repeated until it repeats.
     """
 
     batches: bool
@@ -287,6 +298,7 @@ class Capabilities:
     any_time_step: bool = True
     substitute: str | None = None
     substitute_verified: str = ""
+    initial_state: bool = False
 
     def lacks(self, needs: Sequence[str]) -> list[str]:
         """The capabilities among ``needs`` (attribute names) this engine does not have."""
@@ -300,6 +312,7 @@ CAPABILITY_WORDS = {
     "flux_at_depth": "heat fluxes inside the wall",
     "contact_resistance": "contact resistances",
     "massless_layers": "no-mass layers",
+    "initial_state": "runs from a given state",
 }
 
 
@@ -362,13 +375,18 @@ class Engine:
         that runs walls one at a time implements; :meth:`run` calls it."""
         raise NotImplementedError
 
-    def run(self, prepared, walls: Wall | Sequence[Wall] | WallBatch | None = None):
+    def run(self, prepared, walls: Wall | Sequence[Wall] | WallBatch | None = None, *, initial_state=None):
         """Run the prepared wall (``walls`` None) or another wall (a :class:`Wall`): -> :class:`EngineOutput`;
         a batch (a list of walls or a :class:`WallBatch`): -> :class:`BatchOutput`.
 
-        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly). This default runs the walls
-        one after the other through :meth:`run_wall`; engines with ``batches`` override it.
+        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly). ``initial_state``: node
+        temperatures [degC] on the engine's grid to start from, as a ``final_state`` returned earlier
+        (engines with the ``initial_state`` capability; default: the steady state of the first inputs).
+        This default runs the walls one after the other through :meth:`run_wall`; engines with
+        ``batches`` override it.
         """
+        if initial_state is not None and not self.capabilities.initial_state:
+            raise EngineError(f"the {self.name} engine cannot start from a given state")
         if isinstance(prepared, SimulationInput):
             prepared = self.prepare(prepared)
         inp = prepared.inp

@@ -400,7 +400,12 @@ class FDEngine(Engine):
     """
 
     capabilities = Capabilities(
-        batches=True, conductivity_laws=True, flux_at_depth=True, contact_resistance=True, massless_layers=True
+        batches=True,
+        conductivity_laws=True,
+        flux_at_depth=True,
+        contact_resistance=True,
+        massless_layers=True,
+        initial_state=True,
     )
 
     def __init__(self, scheme: str = "cn"):
@@ -440,11 +445,12 @@ class FDEngine(Engine):
         grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, opts.contact_layers)
         return PreparedFD(core, grid, stiff_limit=opts.stiff_limit)
 
-    def run(self, prepared: PreparedFD | SimulationInput, walls=None, *, path: str = "auto"):
+    def run(self, prepared: PreparedFD | SimulationInput, walls=None, *, initial_state=None, path: str = "auto"):
         """Run the prepared wall, another wall (:class:`EngineOutput`) or a batch (:class:`BatchOutput`).
 
-        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly); ``path`` as in
-        :meth:`PreparedFD.run_batch` (default: the exact modal path when the walls allow it).
+        ``prepared`` may be a :class:`SimulationInput` (prepared on the fly); ``initial_state`` node
+        temperatures (n_nodes,) or (n_candidates, n_nodes) on the prepared grid, as a ``final_state``;
+        ``path`` as in :meth:`PreparedFD.run_batch` (default: the exact modal path when the walls allow it).
         """
         if isinstance(prepared, SimulationInput):
             prepared = self.prepare(prepared)
@@ -461,7 +467,9 @@ class FDEngine(Engine):
             batch = self._batch_of(inp.wall if walls is None else walls, inp.probes[:n_user])
             rows = None
         depths = _with_depth_probes(prepared, batch)
-        res = prepared.run_batch(batch.properties, depths, path=path, rows=rows)
+        if initial_state is not None:
+            initial_state = np.broadcast_to(np.asarray(initial_state, dtype=float), (batch.n, prepared.grid.n_nodes))
+        res = prepared.run_batch(batch.properties, depths, initial_state=initial_state, path=path, rows=rows)
         if not is_batch(walls):
             out = prepared.to_output(res, 0, elapsed=None)
             for name in inp.probes[n_user:]:
@@ -469,6 +477,7 @@ class FDEngine(Engine):
             for name, depth in inp.flux_depths:
                 out.fluxes[name] = _depth_flux(prepared, res.out, batch.properties, name, depth, n_user)[0]
             out.info["seconds"] = time.perf_counter() - t
+            out.final_state = res.final_state[0]
             return out
         npr = len(inp.probes)
         temps = {name: res.out[:, k] for k, name in enumerate(inp.probes[:n_user])}
@@ -482,7 +491,7 @@ class FDEngine(Engine):
             "implicit_links": res.implicit_links,
             "seconds": time.perf_counter() - t,
         }
-        return BatchOutput(temperatures=temps, fluxes=fluxes, info=info)
+        return BatchOutput(temperatures=temps, fluxes=fluxes, info=info, final_state=res.final_state)
 
 
 def _depth_probe(name: str, k: int) -> str:

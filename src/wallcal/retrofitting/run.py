@@ -23,7 +23,6 @@ with the annual loss says which properties make the spread.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import time
@@ -111,9 +110,9 @@ def periodic_year(
 
     ``all_rows=False`` forms only the interior surface temperature and flux (what the batch needs).
     """
-    from ..engines.base import BoundaryInput, EngineOptions, SimulationInput
-    from ..engines.fd import FDEngine, PreparedFD
-    from ..grid import PropertyArrays
+    from ..engines import get_engine
+    from ..engines.base import BoundaryInput, EngineOptions, SimulationInput, WallBatch
+    from ..errors import EngineError
 
     walls = [_with_face_probes(w) for w in walls]
     n = yb.n_steps
@@ -125,51 +124,49 @@ def periodic_year(
         exterior=yb.exterior,
         interior=yb.interior,
         output_positions=np.arange(n + 1, dtype=float),
-        probes=("__se", "__si"),
-        flux_faces=("exterior", "interior"),
+        probes=("__se", "__si") if all_rows else ("__si",),
+        flux_faces=("exterior", "interior") if all_rows else ("interior",),
         grid_constant=grid_constant,
         scheme="cn",
         options=EngineOptions(grid_time_step=min(grid_time_step, dt)),
     )
-    prep = FDEngine("cn").prepare(inp)
+    engine = get_engine("fd-cn")
+    prep = engine.prepare(inp)
+    batch = WallBatch.from_walls(walls, inp.probes)
+    # warm-up: the last WARMUP_DAYS of the period from the steady state of their first values (same grid)
     m = min(int(round(WARMUP_DAYS * 86400 / dt)), n)
-    inp_w = dataclasses.replace(
-        inp,
+    inp_w = inp.replace(
         exterior=BoundaryInput(yb.exterior.type, yb.exterior.values[n - m :], yb.exterior.surface_coefficient),
         interior=BoundaryInput(yb.interior.type, yb.interior.values[n - m :], yb.interior.surface_coefficient),
         output_positions=np.array([float(m)]),
+        probes=("__si",),
+        flux_faces=(),
     )
-    prep_w = PreparedFD(inp_w, prep.grid, stiff_limit=prep.stiff_limit)
-    props = PropertyArrays.from_walls(walls)
-    depths = prep.probe_depth_matrix(walls)
-    rows = None if all_rows else np.array([False, True, False, True])
-    state = prep_w.run_batch(props, depths, rows=np.array([False, True, False, False])).final_state
+    state = engine.run(engine.prepare(inp_w), WallBatch.from_walls(walls, inp_w.probes)).final_state
     passes, residual = 0, math.inf
     while passes < MAX_PASSES:
-        res = prep.run_batch(props, depths, initial_state=state, rows=rows)
+        res = engine.run(prep, batch, initial_state=state)
         passes += 1
         residual = float(np.max(np.abs(res.final_state - state)))
         state = res.final_state
         if residual < tolerance:
             break
     else:
-        from ..errors import EngineError
-
         raise EngineError(
             f"the year did not become periodic in {MAX_PASSES} passes (last change {residual:.3g} K); "
             "the wall's time constant is longer than the weather period allows"
         )
-    out = res.out
+    nan = np.full((len(walls), n + 1), np.nan)
     return YearRun(
-        t_se=out[:, 0],
-        t_si=out[:, 1],
-        q_e=out[:, 2],
-        q_i=out[:, 3],
+        t_se=res.temperatures.get("__se", nan),
+        t_si=res.temperatures["__si"],
+        q_e=res.fluxes.get("exterior", nan),
+        q_i=res.fluxes["interior"],
         time_step=dt,
         passes=passes,
         residual=residual,
-        path=res.path,
-        nodes=prep.grid.n_nodes,
+        path=res.info["path"],
+        nodes=res.info["nodes"],
     )
 
 
