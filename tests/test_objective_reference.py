@@ -82,7 +82,7 @@ def weighted_study(example_study):
 @pytest.mark.parametrize("kind", ["cse", "weighted_cse", "weighted_rmse", "rmse_accuracy"])
 def test_evaluator_objective_matches_a_hand_sum_over_the_simulated_series(weighted_study, kind):
     study, res = weighted_study
-    cal = copy.deepcopy(study.calibration)
+    cal = copy.deepcopy(study.raw["calibration"])
     cal["targets"] = TARGETS
     cal["objective"] = kind
     space = parse_space(study, cal)
@@ -129,7 +129,7 @@ def test_evaluator_objective_matches_a_hand_sum_over_the_simulated_series(weight
 
 def test_objective_and_residuals_from_one_run(weighted_study):
     study, _ = weighted_study
-    cal = copy.deepcopy(study.calibration)
+    cal = copy.deepcopy(study.raw["calibration"])
     cal["targets"], cal["objective"] = TARGETS, "weighted_rmse"
     space = parse_space(study, cal)
     from wallcal.simulation import prepare
@@ -147,7 +147,7 @@ def test_evaluator_probe_depth_parameter_equals_simulate(example_study):
     from wallcal import simulate
     from wallcal.simulation import prepare
 
-    cal = copy.deepcopy(example_study.calibration)
+    cal = copy.deepcopy(example_study.raw["calibration"])
     cal["parameters"] = [{"probe": "T3A", "property": "depth", "bounds": [0.095, 0.105], "bounds_kind": "absolute"}]
     space = parse_space(example_study, cal)
     ev = Evaluator(prepare(example_study), space)
@@ -165,7 +165,7 @@ def test_evaluator_candidates_with_lambda_t_and_contact_parameters_equal_simulat
     from wallcal import simulate
     from wallcal.simulation import prepare
 
-    cal = copy.deepcopy(example_study.calibration)
+    cal = copy.deepcopy(example_study.raw["calibration"])
     cal["parameters"] = [
         {
             "layers": ["3"],

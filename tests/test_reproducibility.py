@@ -28,8 +28,8 @@ def batch(example_study):
         for layer in w.layers:
             w = w.replace_layer(
                 layer.id,
-                conductivity=layer.conductivity * rng.uniform(0.8, 1.2),
-                density=layer.density * rng.uniform(0.8, 1.2),
+                conductivity=layer.conductivity * rng.uniform(0.95, 1.05),
+                density=layer.density * rng.uniform(0.95, 1.05),
             )
         walls.append(w)
     return eng, PropertyArrays.from_walls(walls), eng.probe_depth_matrix(walls)

@@ -138,7 +138,8 @@ def measured_stats(measured: np.ndarray, valid: np.ndarray | None = None) -> dic
         return {
             "ok": ok,
             "n": n,
-            "range": np.where(ok, y, -np.inf).max(axis=1) - np.where(ok, y, np.inf).min(axis=1),
+            "range": np.where(ok, y, -np.inf).max(axis=1, initial=-np.inf)
+            - np.where(ok, y, np.inf).min(axis=1, initial=np.inf),
             "y_eff": np.sqrt(np.einsum("kt,kt->k", yz, yz) / n),
             "mean": yz.sum(axis=1) / n,
         }
