@@ -275,3 +275,25 @@ def test_a_run_starts_from_a_given_state_and_returns_its_end_state():
     np.testing.assert_allclose(batch.final_state[1], c.final_state, rtol=0, atol=1e-9)
     with pytest.raises(EngineError, match="cannot start from a given state"):
         ReferenceEngine().run(first, initial_state=a.final_state)
+
+
+def test_a_sol_air_face_is_a_robin_face_in_every_fd_engine():
+    """sol_air_temperature (the retrofit's exterior face in the weather) runs as a Robin face with the
+    sol-air temperature as input: bit for bit the air_temperature run of the same values in fd-cn, the
+    same in fd-reference within the reference tolerance (1e-6 K), and EnergyPlus says it cannot run it."""
+    from wallcal.engines.reference import ReferenceEngine
+
+    wall = three_layer_wall()
+    t = np.arange(721) * 60.0
+    te = 5 + 15 * np.sin(2 * np.pi * t / 86400)
+    air = make_input(wall, te, np.full(721, 20.0), 60.0, out_every=10, ext="air_temperature", h_e=25.0)
+    sol = air.replace(exterior=dataclasses.replace(air.exterior, type="sol_air_temperature"))
+    eng = get_engine("fd-cn")
+    a, s = eng.simulate(air), eng.simulate(sol)
+    for name in a.temperatures:
+        np.testing.assert_array_equal(a.temperatures[name], s.temperatures[name])
+    r = ReferenceEngine().simulate(sol)
+    for name in a.temperatures:
+        np.testing.assert_allclose(r.temperatures[name], s.temperatures[name], rtol=0, atol=1e-6)
+    ep = engine_class("energyplus")
+    assert "sol_air_temperature" not in ep.capabilities.boundary_types

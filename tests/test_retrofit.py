@@ -211,7 +211,7 @@ def test_year_boundaries_keep_the_radiative_energy_and_close_the_period(tmp_path
     yb = boundary.year_boundaries(wx, spec)
     v = yb.exterior.values
     assert yb.n_steps == 96 * 4 and v[0] == v[-1]
-    assert yb.exterior.type == "air_temperature" and yb.exterior.surface_coefficient == 25.0
+    assert yb.exterior.type == "sol_air_temperature" and yb.exterior.surface_coefficient == 25.0
     # the trapezoid integral of T_eq - T_air over the period equals the sum of the hours' radiative terms
     t_marks = np.concatenate([[wx.data["temp_air"].iloc[-1]], wx.data["temp_air"].to_numpy()])
     t_mid = 0.5 * (t_marks[1:] + t_marks[:-1])

@@ -40,7 +40,7 @@ from ..errors import EngineError
 from ..grid import PropertyArrays
 from ..wall import Wall
 
-BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "heat_flux")
+BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "sol_air_temperature", "heat_flux")
 FACES = ("exterior", "interior")
 
 
@@ -53,14 +53,17 @@ class BoundaryInput:
     type : str
         ``"surface_temperature"`` (values: surface temperature [degC]),
         ``"air_temperature"`` (values: air temperature [degC], with
-        ``surface_coefficient`` [W/(m2K)]), or ``"heat_flux"`` (values: heat
+        ``surface_coefficient`` [W/(m2K)]), ``"sol_air_temperature"`` (an exterior face in the
+        weather: values the sol-air temperature [degC], with the combined exterior coefficient as
+        ``surface_coefficient``; see :mod:`wallcal.engines.boundary`), or ``"heat_flux"`` (values: heat
         flux density at this face [W/m2], positive towards the interior as
         everywhere in wallcal: at the exterior face that is the flux entering
         the wall, at the interior face the flux leaving it into the room).
     values : ndarray, shape (n_steps + 1,)
         Values at grid times ``t0 + k * time_step``.
     surface_coefficient : float or None
-        Combined surface heat transfer coefficient [W/(m2K)] for ``air_temperature``.
+        Combined surface heat transfer coefficient [W/(m2K)] for ``air_temperature`` and
+        ``sol_air_temperature``.
     """
 
     type: str

@@ -9,6 +9,13 @@ A face of the wall is one of (codes are what the numba kernels see; nothing else
   [degC] through the surface coefficient ``h`` [W/(m2K)]; the face node is unknown.
 - :data:`HEAT_FLUX` (Neumann): a heat flux density ``u`` [W/m2], positive towards the interior on
   both faces, enters (exterior) or leaves (interior) the face node.
+- ``"sol_air_temperature"``: an exterior face in the weather (absorbed solar radiation and long-wave
+  exchange with sky and ground, linearised): the input is the sol-air temperature
+  ``T_eq = T_e + (alpha_s I_sol - F_sky h_r (T_e - T_sky)) / h_e`` [degC] exchanged through the combined
+  coefficient ``h_e`` (convective plus radiative), built from a weather file by
+  :func:`wallcal.retrofitting.boundary.year_boundaries`. For the scheme it is a Robin face, so it
+  shares :data:`AIR_TEMPERATURE`'s code and branches; its face flux ``h_e (T_eq - T_s)`` is the net
+  heat entering the wall's exterior surface.
 
 Sign conventions: ``side`` is +1 at the exterior face and -1 at the interior face; face fluxes
 are positive towards the interior at both faces.
@@ -31,7 +38,12 @@ AIR_TEMPERATURE = 1
 HEAT_FLUX = 2
 
 #: boundary type names of the study file / :class:`~wallcal.engines.base.BoundaryInput` -> kernel code
-CODES = {"surface_temperature": SURFACE_TEMPERATURE, "air_temperature": AIR_TEMPERATURE, "heat_flux": HEAT_FLUX}
+CODES = {
+    "surface_temperature": SURFACE_TEMPERATURE,
+    "air_temperature": AIR_TEMPERATURE,
+    "sol_air_temperature": AIR_TEMPERATURE,
+    "heat_flux": HEAT_FLUX,
+}
 
 
 def face_parameters(kind: str, surface_coefficient: float | None) -> tuple[int, float]:

@@ -41,6 +41,7 @@ Nodes ``j`` at depths ``x_j``, links ``l`` between nodes ``l`` and ``l + 1``.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -289,10 +290,17 @@ class ReferenceEngine(Engine):
         for face, b in (("exterior", ext), ("interior", intr)):
             if b.type not in BOUNDARY_TYPES:
                 raise EngineError(f"{face} boundary: unknown type {b.type!r}; one of {BOUNDARY_TYPES}")
-            if b.type == "air_temperature" and not (b.surface_coefficient and b.surface_coefficient > 0):
+            if b.type in ("air_temperature", "sol_air_temperature") and not (
+                b.surface_coefficient and b.surface_coefficient > 0
+            ):
                 raise EngineError(f"{face} boundary: an air temperature needs a surface coefficient > 0")
         if ext.type == "heat_flux" and intr.type == "heat_flux":
             raise EngineError("heat-flux boundaries on both faces leave the temperature level undetermined")
+        # a sol-air face is an air face whose input is the sol-air temperature (h: the combined coefficient)
+        ext, intr = (
+            dataclasses.replace(b, type="air_temperature") if b.type == "sol_air_temperature" else b
+            for b in (ext, intr)
+        )
         ue = np.asarray(ext.values, dtype=float)
         ui = np.asarray(intr.values, dtype=float)
         n_steps = len(ue) - 1

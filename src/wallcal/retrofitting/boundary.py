@@ -2,7 +2,8 @@
 engine's boundary inputs.
 
 Exterior face: the sol-air (equivalent) temperature of ISO 52016-1 / ISO 13790, imposed through the
-engine's ``air_temperature`` (Robin) boundary with the combined coefficient h_e::
+engine's ``sol_air_temperature`` boundary type (a Robin face, :mod:`wallcal.engines.boundary`) with the
+combined coefficient h_e::
 
     T_eq = T_e + (alpha_s I_sol - F_sky h_r (T_e - T_sky)) / h_e
     F_sky = (1 + cos(tilt)) / 2          (1/2 for a vertical wall; the other half sees the ground,
@@ -13,8 +14,7 @@ so that q_e = h_e (T_eq - T_se) = h_e (T_e - T_se) + alpha_s I_sol - F_sky h_r (
 long-wave exchange with air-temperature surroundings are inside h_e (ISO 6946's Rse = 1/h_e), the sky's
 deficit below air temperature is the extra term (h_r evaluated at air and sky temperature, not at the
 unknown surface temperature: the linearisation of ISO 13790 11.4.6). Interior face: air at a constant
-temperature with h_i. When wallcal's engine gains named boundary types, ``sol_air`` becomes one of them and
-this module is where the change goes.
+temperature with h_i.
 """
 
 from __future__ import annotations
@@ -138,7 +138,7 @@ def year_boundaries(weather: Weather, spec, time_step: float | None = None) -> Y
     per_hour = int(round(3600.0 / dt))
     grid_h = np.arange(n * per_hour + 1) / per_hour
     marks = np.arange(n + 1, dtype=float)
-    ext = BoundaryInput("air_temperature", np.interp(grid_h, marks, t_eq_marks), spec.exterior_surface_coefficient)
+    ext = BoundaryInput("sol_air_temperature", np.interp(grid_h, marks, t_eq_marks), spec.exterior_surface_coefficient)
     intr = BoundaryInput(
         "air_temperature", np.full(len(grid_h), float(spec.interior_temperature)), spec.interior_surface_coefficient
     )
