@@ -7,8 +7,6 @@ import ast
 from conftest import REPO
 
 SRC = REPO / "src" / "wallcal"
-#: private imports still to remove (the engine-contract part of issue 17 reworks these modules)
-PENDING = {("workflow.py", "_boundary_named")}
 
 
 def _imports(path):
@@ -51,6 +49,5 @@ def test_no_private_name_is_imported_from_another_module():
             for name in names:
                 own_package = module == ".".join(["wallcal", *rel.parts[:-1]])  # a package's private module
                 if name.startswith("_") and not name.startswith("__") and not own_package:
-                    if (str(rel), name) not in PENDING:
-                        bad.append(f"{rel}: from {module} import {name}")
+                    bad.append(f"{rel}: from {module} import {name}")
     assert not bad, bad
