@@ -28,17 +28,30 @@ from ..wall import Wall
 FLUX_PROBE_SPACING = 1e-3
 
 
-def depth_triplet(wall: Wall, depth: float) -> tuple[float, float, float]:
-    """Depths [m] of the three temperatures: depth - h, depth, depth + h (h = 1 mm), each half kept inside
-    the wall and inside the layer it starts in (a half never reads a gradient across a layer interface,
-    where a contact resistance or a thin, very different layer would make it meaningless)."""
+def _ends(wall: Wall, depth: float) -> tuple[tuple[float, str | None], tuple[float, str | None]]:
+    """(depth [m], side) of the outer ends of the two halves: depth - h and depth + h (h = 1 mm), each half
+    kept inside the wall and inside the layer it starts in (a half never reads a gradient across a layer
+    interface, where a contact resistance or a thin, very different layer would make it meaningless). An
+    end cut back to an interior interface reads the side of its half's own layer."""
     h = FLUX_PROBE_SPACING
     bounds = wall.interfaces
+    last = len(wall.layers) - 1
     tol = 1e-12 * max(wall.thickness, 1.0)
     left = _layer_index(wall, depth - tol)
     right = _layer_index(wall, depth + tol)
-    xm = max(depth - h, bounds[left], 0.0) if depth > tol else depth
-    xp = min(depth + h, bounds[right + 1], wall.thickness) if depth < wall.thickness - tol else depth
+    minus, plus = (depth, None), (depth, None)
+    if depth > tol:
+        cut = bounds[left] >= depth - h
+        minus = (max(depth - h, bounds[left], 0.0), "interior" if cut and left > 0 else None)
+    if depth < wall.thickness - tol:
+        cut = bounds[right + 1] <= depth + h
+        plus = (min(depth + h, bounds[right + 1], wall.thickness), "exterior" if cut and right < last else None)
+    return minus, plus
+
+
+def depth_triplet(wall: Wall, depth: float) -> tuple[float, float, float]:
+    """Depths [m] of the three temperatures: depth - h, depth, depth + h (see :func:`_ends`)."""
+    (xm, _), (xp, _) = _ends(wall, depth)
     return (xm, depth, xp)
 
 
@@ -58,12 +71,8 @@ def depth_probes(wall: Wall, depth: float, contact_layers=frozenset()) -> tuple[
     or at a contact interface the interface's exterior side, its mean and its interior side."""
     if contact_at(wall, depth, contact_layers) is not None:
         return ((depth, "exterior"), (depth, None), (depth, "interior"))
-    xm, x0, xp = depth_triplet(wall, depth)
-    inner = wall.interfaces[1:-1]
-    # an end of a half that lies on an interface reads the side of the half's own layer
-    side_m = "interior" if xm < x0 and np.any(np.isclose(inner, xm, rtol=0, atol=1e-12)) else None
-    side_p = "exterior" if xp > x0 and np.any(np.isclose(inner, xp, rtol=0, atol=1e-12)) else None
-    return ((xm, side_m), (x0, None), (xp, side_p))
+    minus, plus = _ends(wall, depth)
+    return (minus, (depth, None), plus)
 
 
 def _layer_index(wall: Wall, x: float) -> int:
@@ -106,11 +115,11 @@ def flux_at_depth(
     -------
     ndarray, shape (n_candidates, n_times)
     """
-    xm, x0, xp = depth_triplet(wall, depth)
     t_minus, t_at, t_plus = (np.asarray(v, dtype=float) for v in (t_minus, t_at, t_plus))
     if contact_layer is not None:
         r_c = np.maximum(props.contact_resistance[:, contact_layer, None], MIN_CONTACT_RESISTANCE)
         return (t_minus - t_plus) / r_c
+    xm, x0, xp = depth_triplet(wall, depth)
     halves = []
     for xa, xb, ta, tb in ((xm, x0, t_minus, t_at), (x0, xp, t_at, t_plus)):
         if xb > xa:

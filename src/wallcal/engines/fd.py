@@ -250,10 +250,6 @@ class PreparedFD:
             return np.zeros(cap.shape[0], dtype=bool)
         return (cap[:, j0 : j0 + m] > 0).all(axis=1) & (n_forced == 0)
 
-    def fast_path_possible(self, cap: np.ndarray, n_forced: np.ndarray) -> bool:
-        """The modal fast path applies to every candidate (see :meth:`fast_path_mask`)."""
-        return bool(self.fast_path_mask(cap, n_forced).all())
-
     def run_batch(
         self,
         props: PropertyArrays,
