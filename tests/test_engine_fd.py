@@ -9,7 +9,7 @@ import pytest
 from analytic import periodic_solution
 from conftest import make_input, three_layer_wall
 from wallcal.engines.fd import FDEngine
-from wallcal.grid import PropertyArrays
+from wallcal.grid import PropertyArrays, assemble
 from wallcal.wall import Layer, Probe, Wall
 
 
@@ -466,20 +466,30 @@ def test_modal_output_plan_equals_general_path(positions, rows):
     np.testing.assert_allclose(fast.final_state, slow.final_state, rtol=0, atol=1e-9)
 
 
-def test_mixed_batch_runs_each_candidate_on_its_own_path():
-    """A batch where the theta rule raises theta for some candidates only: those run on the general path,
-    the others on the modal path, each equal to its own single run (round-off of the two paths)."""
+def test_raised_theta_stays_on_the_modal_path():
+    """Candidates for which the theta rule raises theta (at the exterior input's link, and on inner links
+    only) run on the modal path - the generalized eigenproblem - in one batch with candidates that keep
+    Crank-Nicolson everywhere, each equal to its general-path run to round-off."""
     wall = three_layer_wall()
     t = np.arange(1441) * 60.0
     inp = make_input(wall, 5 + 15 * np.sin(2 * np.pi * t / 86400), np.full(1441, 20.0), 60.0, out_every=5)
     prep = FDEngine("cn").prepare(inp)
-    first = wall.layers[0]
-    stiff = wall.replace_layer(first.id, conductivity=first.conductivity * 400.0)  # raises theta at its nodes
-    walls = [wall, stiff, wall.replace_layer(first.id, conductivity=first.conductivity * 1.1)]
-    singles = [prep.run_walls([w]) for w in walls]
-    assert [r.path for r in singles] == ["modal", "general", "modal"]
+    first, middle = wall.layers[0], wall.layers[1]
+    walls = [
+        wall,
+        wall.replace_layer(first.id, conductivity=first.conductivity * 400.0),  # theta raised at the input link
+        wall.replace_layer(middle.id, conductivity=middle.conductivity * 400.0),  # raised on inner links only
+        wall.replace_layer(first.id, conductivity=first.conductivity * 1.1),
+    ]
     batch = prep.run_walls(walls)
-    assert batch.path == "modal+general"
-    for i, single in enumerate(singles):
-        np.testing.assert_allclose(batch.out[i], single.out[0], rtol=0, atol=1e-12)
-        assert np.isnan(batch.energy[i]).all() == (single.path == "modal")
+    assert batch.path == "modal"
+    assert list(batch.implicit_links > 0) == [False, True, True, False]
+    cap, g = assemble(prep.grid, PropertyArrays.from_walls(walls))
+    theta, bc_theta, _ = prep._thetas(cap, g)
+    assert theta[1, 0] > 0.5 and theta[2, 0] == 0.5  # (the exterior face has an imposed temperature)
+    general = prep.run_walls(walls, path="general")
+    scale = np.abs(general.out).max(axis=2, keepdims=True)
+    np.testing.assert_allclose(batch.out / scale, general.out / scale, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(batch.final_state, general.final_state, rtol=0, atol=1e-10)
+    for i, w in enumerate(walls):  # a batch equals its single runs
+        np.testing.assert_array_equal(batch.out[i], prep.run_walls([w]).out[0])

@@ -34,9 +34,9 @@ Scheme details
   series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces. A heat flux inside the
   wall (``SimulationInput.flux_depths``) comes from three probes the engine adds around the depth
   (:mod:`wallcal.engines.depthflux`). Outputs between grid times are interpolated linearly in time.
-- Paths: walls with constant conductances, heat capacity at every unknown node
-  and one theta on every term (none raised) take the exact modal fast path (:mod:`wallcal.engines.modal`);
-  the others the general tridiagonal path (:mod:`wallcal.engines.kernels`).
+- Paths: walls with constant conductances take the exact modal fast path (:mod:`wallcal.engines.modal`),
+  raised thetas and nodes without capacity included; lambda(T) walls the general tridiagonal path
+  (:mod:`wallcal.engines.kernels`), which runs any wall with ``path="general"``.
   ``run_batch(path="auto")`` chooses, the result's ``path`` says which ran.
 - Per call, Python only checks the inputs and calls numba functions (grid
   assembly, thetas, probe weights, the batch kernel); everything that depends
@@ -87,8 +87,7 @@ class BatchResult:
     final_state : ndarray, shape (n_candidates, n_nodes)
     implicit_links : ndarray of int, shape (n_candidates,)
     path : str
-        ``"modal"`` (exact fast path), ``"general"`` (tridiagonal theta scheme) or ``"modal+general"``
-        (a batch whose candidates took either path).
+        ``"modal"`` (exact fast path) or ``"general"`` (tridiagonal theta scheme).
     energy is NaN on the modal path (the balance is checked on the general path; both paths
     are the same linear algebra).
     """
@@ -242,13 +241,11 @@ class PreparedFD:
         j0, m = operator.unknown_range(self.grid.n_nodes, self.bc_type)
         return int(j0), int(m)
 
-    def fast_path_mask(self, cap: np.ndarray, n_forced: np.ndarray) -> np.ndarray:
-        """Per candidate, whether the modal fast path applies: constant properties, every unknown node
-        stores heat, one theta on every term (none raised by the theta rule)."""
-        j0, m = self.unknown_range
-        if self.nonlinear or m < 1:
-            return np.zeros(cap.shape[0], dtype=bool)
-        return (cap[:, j0 : j0 + m] > 0).all(axis=1) & (n_forced == 0)
+    @property
+    def modal_possible(self) -> bool:
+        """Whether the exact modal fast path applies: constant conductivities (no lambda(T)) and at
+        least one unknown node (:mod:`wallcal.engines.modal`)."""
+        return not self.nonlinear and self.unknown_range[1] >= 1
 
     def run_batch(
         self,
@@ -269,9 +266,9 @@ class PreparedFD:
         initial_state : ndarray, shape (n_candidates, n_nodes), optional
             Initial node temperatures [degC]; default: steady state of the first boundary values.
         path : {"auto", "modal", "general"}
-            ``"auto"`` takes the exact modal fast path for every candidate that allows it
-            (see :mod:`wallcal.engines.modal`) and the general tridiagonal path for the others.
-            The result's ``path`` attribute says which ran (``"modal+general"`` for a mixed batch).
+            ``"auto"`` takes the exact modal fast path when the wall allows it (constant
+            conductivities, see :mod:`wallcal.engines.modal`), else the general tridiagonal path.
+            The result's ``path`` attribute says which ran.
         rows : ndarray of bool, shape (n_probes + 2,), optional
             Output rows wanted (probes, then exterior and interior flux); the fast path forms only
             these (the others are NaN), which saves time when calibrating on a few targets.
@@ -282,16 +279,10 @@ class PreparedFD:
             raise EngineError("candidate wall with non-positive or non-finite properties")
         theta, bc_theta, n_forced = self._thetas(cap, g)
         pa, pb, pw = self._probe_weights(probe_depths, nc)
-        fast = self.fast_path_mask(cap, n_forced)
-        if path == "modal" and not fast.all():
-            raise EngineError(
-                "the modal fast path needs constant conductivities, heat capacity at every "
-                "unknown node and one theta on every link (none raised by the theta rule); use path='general'"
-            )
-        if path in ("auto", "modal") and fast.all():
-            return self._run_modal(cap, g, pa, pb, pw, initial_state, n_forced, rows)
-        if path == "auto" and fast.any():  # a mixed batch: each candidate on its own path
-            return self._run_mixed(fast, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state, rows)
+        if path == "modal" and not self.modal_possible:
+            raise EngineError("the modal fast path needs constant conductivities (no lambda(T)); use path='general'")
+        if path in ("auto", "modal") and self.modal_possible:
+            return self._run_modal(cap, g, theta, bc_theta, pa, pb, pw, initial_state, n_forced, rows)
         return self._run_general(props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state)
 
     def _run_general(self, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state) -> BatchResult:
@@ -318,42 +309,42 @@ class PreparedFD:
         out, energy, tend = in_threads(part, nc)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
-    def _run_mixed(self, fast, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state, rows):
-        """Candidates that allow it on the modal path, the others on the general path, in one result."""
-        idx = (np.flatnonzero(fast), np.flatnonzero(~fast))
-        init = (None, None) if initial_state is None else tuple(np.asarray(initial_state)[i] for i in idx)
-        a, b = idx
-        modal_res = self._run_modal(cap[a], g[a], pa[a], pb[a], pw[a], init[0], n_forced[a], rows)
-        general_res = self._run_general(
-            props.take(b), cap[b], g[b], theta[b], bc_theta[b], n_forced[b], pa[b], pb[b], pw[b], init[1]
-        )
-        nc = len(fast)
-        out = np.empty((nc,) + modal_res.out.shape[1:])
-        energy = np.empty((nc, 3))
-        tend = np.empty((nc, cap.shape[1]))
-        for i, res in zip(idx, (modal_res, general_res), strict=True):
-            out[i], energy[i], tend[i] = res.out, res.energy, res.final_state
-        return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal+general")
-
     # ------------------------------------------------------------------ fast path
-    def _output_plan(self) -> modal.ModalPlan:
-        if getattr(self, "_plan", None) is None:
-            self._plan = modal.modal_plan(self.out_step, self.out_w, self.theta, self.ue, self.ui, self.dt)
-        return self._plan
+    def _output_plan(self, input_thetas: tuple[float, float]) -> modal.ModalPlan:
+        """The modal plan for these input thetas (:func:`wallcal.engines.modal.input_thetas`): that of
+        theta0 is kept; others (a candidate whose face terms are stiff) are kept while few."""
+        plans = self.__dict__.setdefault("_plans", {})
+        plan = plans.get(input_thetas)
+        if plan is None:
+            if len(plans) >= 16:
+                del plans[next(k for k in plans if k != (self.theta, self.theta))]
+            plan = plans[input_thetas] = modal.modal_plan(
+                self.out_step, self.out_w, input_thetas, self.ue, self.ui, self.dt
+            )
+        return plan
 
-    def _run_modal(self, cap, g, pa, pb, pw, initial_state, n_forced, rows=None) -> BatchResult:
+    def _run_modal(self, cap, g, theta, bc_theta, pa, pb, pw, initial_state, n_forced, rows=None) -> BatchResult:
+        """The modal path; candidates whose inputs enter through terms with a raised theta run with a
+        plan of their own (one call per distinct pair of input thetas)."""
         nc, n_nodes = cap.shape
         want = np.ones(pa.shape[1] + 2, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        plan = self._output_plan()
+        th_in = modal.input_thetas(theta, bc_theta, self.bc_type)
+        keys = [(float(a), float(b)) for a, b in th_in]
+        out = np.empty((nc, pa.shape[1] + 2, len(self.out_step)))
+        tend = np.empty((nc, n_nodes))
+        for key in dict.fromkeys(keys):
+            idx = np.flatnonzero([k == key for k in keys])
+            plan = self._output_plan(key)
 
-        def part(sl):
-            return modal.modal_batch(
-                cap[sl], g[sl], pa[sl], pb[sl], pw[sl], self.bc_type, self.bc_h, self.theta, self.dt, self.ue,
-                self.ui, plan, want, t0[sl],
-            )  # fmt: skip
+            def part(sl, idx=idx, plan=plan):
+                i = idx[sl]
+                return modal.modal_batch(
+                    cap[i], g[i], theta[i], bc_theta[i], pa[i], pb[i], pw[i], self.bc_type, self.bc_h, self.theta,
+                    self.dt, self.ue, self.ui, plan, want, t0[i],
+                )  # fmt: skip
 
-        out, tend = in_threads(part, nc)
+            out[idx], tend[idx] = in_threads(part, len(idx))
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         energy = np.full((nc, 3), np.nan)

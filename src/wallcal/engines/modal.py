@@ -1,21 +1,25 @@
 """The exact fast path for walls with constant properties: the theta scheme, diagonalised.
 
-For a wall whose conductances do not depend on temperature, whose unknown nodes
-all store heat and whose links all share one theta, the scheme
+For a wall whose conductances do not depend on temperature, a step of the scheme
 
-    (Cap/dt + theta K) T^{n+1} = (Cap/dt - (1 - theta) K) T^n + p (theta u^{n+1} + (1 - theta) u^n)
+    M T^{n+1} = N T^n + p s^n,   M = Cap/dt + K_theta,   N = Cap/dt - K_{1-theta}
 
-(``K`` the conductance matrix of the unknown nodes, boundary coefficients
-included; ``p`` the input coupling, one column per boundary input) is
-diagonalised by the symmetric generalized eigenproblem ``K v = lambda Cap v``
-with ``V^T Cap V = I``. Each mode then follows the real first-order recursion
+(``K_w`` the conductance matrix of the unknown nodes with each term weighted by ``w``, boundary
+coefficients included (:func:`wallcal.engines.operator.assemble_operator`); ``p`` the input
+coupling, one column per boundary input; ``s^n = theta u^{n+1} + (1 - theta) u^n`` with the theta of
+the term through which each input enters) is diagonalised by the symmetric generalized
+eigenproblem ``N v = mu M v`` with ``V^T M V = I``. Each mode then follows the real first-order
+recursion
 
-    z_k^{n+1} = mu_k z_k^n + r_k . s^n,   mu_k = (1/dt - (1 - theta) lambda_k) / (1/dt + theta lambda_k),
-    r_k = (V^T p)_k / (1/dt + theta lambda_k),  s^n = theta u^{n+1} + (1 - theta) u^n,
+    z_k^{n+1} = mu_k z_k^n + r_k . s^n,   z = V^T M T,   r = V^T p,
 
-which is the same linear algebra as the tridiagonal solve (results agree to
-round-off). The kernel runs it on the state scaled by the interior coupling,
-``y_k = z_k / r_{k,i}``, so that the interior input enters unscaled:
+which is the same linear algebra as the tridiagonal solve (results agree to round-off). With one
+theta on every term and heat capacity at every node (the usual case), ``M`` and ``N`` are functions
+of ``Cap^-1 K``: ``K v = lambda Cap v`` gives ``mu_k = (1/dt - (1 - theta) lambda_k) / (1/dt + theta lambda_k)``
+from a tridiagonal eigenproblem (step 2 below); otherwise (theta raised by the theta rule, nodes
+without capacity) ``A = L^-1 N L^-T`` with ``M = L L^T`` is reduced to tridiagonal form by
+Householder reflections first (step 2'). The kernel runs the recursion on the state scaled by the
+interior coupling, ``y_k = z_k / r_{k,i}``, so that the interior input enters unscaled:
 ``y <- mu y + (alpha s_e + s_i)``, two multiply-adds per mode and step. The modes
 are independent, so the loop over them vectorises, and the state stays in
 registers for several steps per pass, so the recursion runs at the machine's
@@ -47,6 +51,9 @@ Per candidate (everything inside the numba batch loop; a batch is split over thr
    outputs need (both ends, the probes' nodes) and recorded, so that the initial
    and final states can be mapped with them. O(m^2) instead of the O(m^3) of a
    dense ``eigh``, and no LAPACK/BLAS call (no threads of its own inside ours).
+2'. Otherwise: ``M = L L^T`` (bidiagonal ``L``), ``A = L^-1 N L^-T`` (dense), Householder
+   reduction ``A = Q T Q^T`` (:func:`_householder`, O(m^3)), the same QL on ``T``; the couplings
+   and output rows are mapped as ``V^T x = W^T Q^T L^-1 x`` before the QL (as columns of ``zt``).
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
    over the steps: between two anchors five steps apart (5-minute data at
    1-minute steps), one loop over the modes forms the anchor's output rows and
@@ -184,13 +191,126 @@ def apply_wt(nrot, rot_i, rot_cs, x):
         x[i + 1] = s * a + c * b
 
 
+@njit(cache=True)
+def _householder(a, beta):
+    """Reduce the symmetric ``a`` (m, m) to tridiagonal form in place, ``a = Q T Q^T``: on return
+    ``a[k, k]`` and ``a[k + 1, k]`` hold T's diagonal and off-diagonal, row ``k`` beyond column k
+    the Householder vector ``v_k`` (acting on indices ``k + 1 ..``) and ``beta[k]`` its factor
+    (``H_k = I - beta_k v_k v_k^T``, ``Q = H_0 H_1 ... H_{m-3}``). O(m^3)."""
+    m = a.shape[0]
+    p = np.empty(m)
+    for k in range(m - 2):
+        alpha = 0.0
+        for i in range(k + 1, m):
+            alpha += a[i, k] * a[i, k]
+        alpha = np.sqrt(alpha)
+        if a[k + 1, k] > 0.0:
+            alpha = -alpha
+        vv = 0.0
+        for i in range(k + 1, m):  # v = x - alpha e_1, stored in row k
+            a[k, i] = a[i, k]
+        a[k, k + 1] -= alpha
+        for i in range(k + 1, m):
+            vv += a[k, i] * a[k, i]
+        if vv == 0.0:  # the column is already reduced
+            beta[k] = 0.0
+            continue
+        b = 2.0 / vv
+        beta[k] = b
+        # B <- H B H on the trailing block: p = b B v, w = p - (b/2)(v.p) v, B -= v w^T + w v^T
+        vp = 0.0
+        for i in range(k + 1, m):
+            acc = 0.0
+            for j in range(k + 1, m):
+                acc += a[max(i, j), min(i, j)] * a[k, j]  # B from the lower triangle
+            p[i] = b * acc
+            vp += a[k, i] * p[i]
+        hk = 0.5 * b * vp
+        for i in range(k + 1, m):
+            p[i] -= hk * a[k, i]
+        for i in range(k + 1, m):
+            for j in range(k + 1, i + 1):
+                a[i, j] -= a[k, i] * p[j] + p[i] * a[k, j]
+        a[k + 1, k] = alpha
+
+
+@njit(cache=True)
+def _apply_qt(a, beta, x):
+    """x <- Q^T x (node-like coordinates to those of the tridiagonal T), Q from :func:`_householder`."""
+    m = a.shape[0]
+    for k in range(m - 2):
+        if beta[k] == 0.0:
+            continue
+        s = 0.0
+        for i in range(k + 1, m):
+            s += a[k, i] * x[i]
+        s *= beta[k]
+        for i in range(k + 1, m):
+            x[i] -= s * a[k, i]
+
+
+@njit(cache=True)
+def _apply_q(a, beta, x):
+    """x <- Q x."""
+    m = a.shape[0]
+    for k in range(m - 3, -1, -1):
+        if beta[k] == 0.0:
+            continue
+        s = 0.0
+        for i in range(k + 1, m):
+            s += a[k, i] * x[i]
+        s *= beta[k]
+        for i in range(k + 1, m):
+            x[i] -= s * a[k, i]
+
+
+@njit(cache=True)
+def _lower_solve(ld, lo, x):
+    """x <- L^-1 x for the lower bidiagonal L (diagonal ld, subdiagonal lo)."""
+    x[0] /= ld[0]
+    for i in range(1, x.shape[0]):
+        x[i] = (x[i] - lo[i - 1] * x[i - 1]) / ld[i]
+
+
+@njit(cache=True)
+def _lower_t_solve(ld, lo, x):
+    """x <- L^-T x."""
+    m = x.shape[0]
+    x[m - 1] /= ld[m - 1]
+    for i in range(m - 2, -1, -1):
+        x[i] = (x[i] - lo[i] * x[i + 1]) / ld[i]
+
+
+@njit(cache=True)
+def _lower_solve_rows(ld, lo, y):
+    """Y <- L^-1 Y, row by row (every column at once)."""
+    m, n = y.shape
+    for j in range(n):
+        y[0, j] /= ld[0]
+    for i in range(1, m):
+        for j in range(n):
+            y[i, j] = (y[i, j] - lo[i - 1] * y[i - 1, j]) / ld[i]
+
+
+def input_thetas(theta, bc_theta, bc_type):
+    """Per candidate (c, 2), the theta of the term through which each face's input enters: the face
+    link's for a face with an imposed temperature, the face term's otherwise (the inputs of a step
+    are ``s = theta u^{n+1} + (1 - theta) u^n`` with these, see :func:`modal_plan`)."""
+    out = np.array(bc_theta, dtype=float, copy=True)
+    if boundary.is_known(bc_type[0]):
+        out[:, 0] = theta[:, 0]
+    if boundary.is_known(bc_type[1]):
+        out[:, 1] = theta[:, -1]
+    return out
+
+
 class ModalPlan(NamedTuple):
     """What the modal kernel needs besides the candidate: the same for every candidate.
 
     For k outputs: ``base`` (k,) anchor step; ``opat`` (k, 2) and ``ow`` (k, 2), the weight
     patterns of the grid times ``nk`` and ``nk + 1`` and their weights ``1 - w`` and ``w``; ``wp``,
-    ``wf`` (n_pat, 4), the weights of the states ``base + 0 .. 3`` in probe rows and in face-flux
-    rows for each pattern; ``feat`` (6, k), the input terms of :func:`output_plan`; ``sw`` (6, k),
+    ``wf`` (n_pat, 4) and (n_pat, 8), the weights of the states ``base + 0 .. 3`` in probe rows and in the
+    two face-flux rows for each pattern; ``feat`` (6, k), the input terms of :func:`output_plan`; ``sw`` (6, k),
     the theta-weighted inputs ``s`` of the steps ``base .. base + 2`` (channels interleaved);
     ``pmain`` (1,), the pattern of most outputs and ``mainw`` (k,) its weight in each output, and
     the other (output, pattern, weight) contributions ``xk, xp, xw``; ``s`` (n_steps, 2), the
@@ -221,13 +341,16 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
     (weights ``1 - w`` and ``w``): probe rows are linear in time, face-flux rows use the
     energy-consistent average ``q^j = (F^{j-1/2} + F^{j+1/2}) / 2`` (one-sided at the ends).
 
+    ``theta`` = (theta_e, theta_i): the theta of the term through which each face's input enters.
+
     Returns
     -------
     base : (k,) int
     opat, ow : (k, 2) int, (k, 2) float
         The patterns of grid times ``nk`` and ``nk + 1`` and their weights.
-    wp, wf : (n_pat, 4)
-        Weights of the states ``base + 0 .. 3`` in probe rows and in face-flux rows, per pattern.
+    wp : (n_pat, 4), wf : (n_pat, 8)
+        Weights of the states ``base + 0 .. 3`` in probe rows, and in the exterior (``wf[:, :4]``)
+        and interior (``wf[:, 4:]``) face-flux rows, per pattern.
     feat : (k, 6)
         Input terms: ``u_e, u_i`` interpolated in time (probe rows on a known face node), then the
         same two-step averages of ``u_e, u_i`` and of their central differences ``du/dt`` (flux rows).
@@ -240,28 +363,28 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
     rows = np.arange(n_out)
     feat[:, 0] = (1.0 - w) * ue[nk] + w * ue[nk + 1]
     feat[:, 1] = (1.0 - w) * ui[nk] + w * ui[nk + 1]
-    pats = np.zeros((2, n_out, 8))  # per grid time nk + jj: probe weights (4), flux weights (4)
+    pats = np.zeros((2, n_out, 12))  # per grid time nk + jj: probe weights (4), flux weights (4 + 4)
     keys = np.zeros((2, n_out), dtype=np.int64)  # what the weights depend on: offset and kind
     for jj in (0, 1):
         j = nk + jj
         wt = (1.0 - w) if jj == 0 else w
         pats[jj, rows, j - base] = 1.0
-        a = np.where(j == 0, 0.0, np.where(j >= n_steps, 1.0 - theta, 0.5 * (1.0 - theta)))
-        b = np.where(j == 0, 1.0 - theta, np.where(j >= n_steps, theta, 0.5))
-        c = np.where(j == 0, theta, np.where(j >= n_steps, 0.0, 0.5 * theta))
         jm = np.maximum(j - 1, 0)
         jp = np.minimum(j + 1, n_steps)
-        for coef, jx in ((a, jm), (b, j), (c, jp)):  # one entry per row: no repeated index
-            pats[jj, rows, 4 + jx - base] += coef
+        for f, (th, u) in enumerate(((theta[0], ue), (theta[1], ui))):
+            a = np.where(j == 0, 0.0, np.where(j >= n_steps, 1.0 - th, 0.5 * (1.0 - th)))
+            b = np.where(j == 0, 1.0 - th, np.where(j >= n_steps, th, 0.5))
+            c = np.where(j == 0, th, np.where(j >= n_steps, 0.0, 0.5 * th))
+            for coef, jx in ((a, jm), (b, j), (c, jp)):  # one entry per row: no repeated index
+                pats[jj, rows, 4 + 4 * f + jx - base] += coef
+            feat[:, 2 + f] += wt * (a * u[jm] + b * u[j] + c * u[jp])
         keys[jj] = (j - base) * 3 + np.where(j == 0, 1, np.where(j >= n_steps, 2, 0))
-        feat[:, 2] += wt * (a * ue[jm] + b * ue[j] + c * ue[jp])
-        feat[:, 3] += wt * (a * ui[jm] + b * ui[j] + c * ui[jp])
         inv = 1.0 / ((jp - jm) * dt)
         feat[:, 4] += wt * (ue[jp] - ue[jm]) * inv
         feat[:, 5] += wt * (ui[jp] - ui[jm]) * inv
     # the distinct patterns (the weights are a function of the key)
     ukeys, first, inv_idx = np.unique(keys.reshape(-1), return_index=True, return_inverse=True)
-    uniq = pats.reshape(2 * n_out, 8)[first]
+    uniq = pats.reshape(2 * n_out, 12)[first]
     opat = np.ascontiguousarray(inv_idx.reshape(2, n_out).T, dtype=np.int64)
     ow = np.ascontiguousarray(np.column_stack([1.0 - w, w]))
     wp = np.ascontiguousarray(uniq[:, :4])
@@ -270,13 +393,14 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
 
 
 def modal_plan(out_step, out_w, theta, ue, ui, dt) -> ModalPlan:
-    """The plan of the modal kernel (:class:`ModalPlan`) for one prepared simulation."""
+    """The plan of the modal kernel (:class:`ModalPlan`) for one prepared simulation; ``theta`` =
+    (theta_e, theta_i), the theta of the terms through which the inputs enter (see :func:`input_thetas`)."""
     ue = np.asarray(ue, dtype=float)
     ui = np.asarray(ui, dtype=float)
     n_steps = len(ue) - 1
     s = np.empty((n_steps, 2))
-    s[:, 0] = theta * ue[1:] + (1.0 - theta) * ue[:-1]
-    s[:, 1] = theta * ui[1:] + (1.0 - theta) * ui[:-1]
+    s[:, 0] = theta[0] * ue[1:] + (1.0 - theta[0]) * ue[:-1]
+    s[:, 1] = theta[1] * ui[1:] + (1.0 - theta[1]) * ui[:-1]
     base, opat, ow, wp, wf, feat = output_plan(out_step, out_w, n_steps, theta, ue, ui, dt)
     if len(base) > 1 and (np.diff(base) < 0).any():
         raise ValueError("output times must be in increasing order")
@@ -365,7 +489,7 @@ def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
     Q = np.empty((3, m))
     for p in range(wp.shape[0]):
         for q in rq:
-            w = wp[p] if q < npr else wf[p]
+            w = wp[p] if q < npr else (wf[p, :4] if q == npr else wf[p, 4:])
             for k in range(m):
                 u = mu[k]
                 P[k] = w[0] + u * (w[1] + u * (w[2] + u * w[3]))
@@ -520,7 +644,7 @@ def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_s
 
 
 @njit(cache=True, nogil=True)
-def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s):
+def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s):
     """Run every candidate through its modal recursion (see module docstring). Releases the GIL: a
     caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`).
 
@@ -529,7 +653,10 @@ def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan,
     cap : (c, j) node heat capacities; g : (c, l) link conductances
     pa, pb, pw : (c, p) probe interpolation (see :func:`wallcal.grid.probe_weights`)
     bc_type : (2,) boundary codes; bc_h : (2,) surface coefficients
-    theta, dt : scheme weight and time step [s]
+    thetas : (c, l), bc_thetas : (c, 2) theta of each link and face term
+        (:func:`wallcal.engines.operator.link_thetas`); the terms through which the inputs enter must
+        have the thetas the plan was made with (:func:`input_thetas`); theta : the scheme's theta;
+        dt : time step [s]
     ue, ui : (n_steps + 1,) inputs
     plan : :class:`ModalPlan` (a tuple of arrays, the same for every candidate)
     want : (p + 2,) bool, the output rows to form (the others are NaN)
@@ -562,7 +689,7 @@ def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan,
         G_nodes = np.empty((n_q, m))
         D = np.empty((n_q, N_FEAT))
         pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
-        n_rq = 0
+        n_rq = np.int64(0)  # (not a literal 0: numba would compile _recursion for Literal[int](0) too)
         for q in range(n_q):
             if want[q]:
                 n_rq += 1
@@ -571,7 +698,7 @@ def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan,
                     G_nodes[q, i] = 0.0
         rq = np.empty(n_rq, dtype=np.int64)
         fq = np.full(N_FUSED, n_q, dtype=np.int64)  # fused rows, padded with the zero row n_q
-        n_rq = 0
+        n_rq = np.int64(0)
         for q in range(n_q):
             if want[q]:
                 rq[n_rq] = q
@@ -580,69 +707,152 @@ def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan,
                 n_rq += 1
             else:
                 out[q, :] = np.nan
-        # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
-        dinv = np.empty(m)
+        uniform = True  # one theta on every term and heat capacity at every unknown node
+        for lnk in range(thetas.shape[1]):
+            if thetas[cand, lnk] != theta:
+                uniform = False
+        if bc_thetas[cand, 0] != theta or bc_thetas[cand, 1] != theta:
+            uniform = False
         for i in range(m):
-            dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
-        lam = np.empty(m)
-        ee = np.zeros(m)
-        for i in range(m):
-            lam[i] = kd[i] * dinv[i] * dinv[i]
-        for i in range(m - 1):
-            ee[i] = ko[i] * dinv[i] * dinv[i + 1]
-        # unknowns whose eigenvector components are needed: both ends and the probes' nodes
-        col = np.full(m, -1, dtype=np.int64)
-        col[0] = 0
-        r = 1
-        for i in range(1, m):
-            need = i == m - 1
-            for q in range(n_q):
-                if G_nodes[q, i] != 0.0:
-                    need = True
-            if need:
-                col[i] = r
-                r += 1
-        zt = np.zeros((m, r))
-        for i in range(m):
-            if col[i] >= 0:
-                zt[i, col[i]] = 1.0
-        rot_i = np.empty(2 * m * m, dtype=np.int64)
-        rot_cs = np.empty((2 * m * m, 2))
-        nrot, rot_i, rot_cs = tridiag_ql(lam, ee, zt, rot_i, rot_cs)
-        if nrot < 0:
-            out[:, :] = np.nan
-            tend[:] = np.nan
-            continue
-        # modal coefficients; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
+            if not cap[j0 + i] > 0.0:
+                uniform = False
         mu = np.empty(m)
         r0 = np.empty(m)
         r1 = np.empty(m)
         z = np.empty(m)  # modal state
-        ce = col[0]
-        ci = col[m - 1]
-        for k in range(m):
-            den = 1.0 / dt + theta * lam[k]
-            mu[k] = (1.0 / dt - (1.0 - theta) * lam[k]) / den
-            a0 = dinv[0] * zt[k, ce] * pe
-            a1 = dinv[m - 1] * zt[k, ci] * pi
-            r0[k] = a0 / den
-            r1[k] = a1 / den
-            # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
-            z[k] = (a0 * ue[0] + a1 * ui[0]) / lam[k]
-        if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T)
+        G = np.zeros((n_q, m))  # output rows in modal coordinates
+        rot_i = np.empty(2 * m * m, dtype=np.int64)
+        rot_cs = np.empty((2 * m * m, 2))
+        dinv = np.ones(m)  # uniform: Cap^-1/2
+        ld = np.ones(m)  # otherwise: M = L L^T and the Householder vectors of A (see below)
+        lo = np.zeros(m)
+        a = np.zeros((0, 0))
+        beta = np.zeros(m)
+        if uniform:
+            # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
             for i in range(m):
-                z[i] = t0[j0 + i] / dinv[i]
-            apply_wt(nrot, rot_i, rot_cs, z)
-        # output rows in modal coordinates: G = G_nodes V
-        G = np.zeros((n_q, m))
-        for q in range(n_q):
+                dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
+            lam = np.empty(m)
+            ee = np.zeros(m)
             for i in range(m):
-                h = G_nodes[q, i]
-                if h != 0.0:
-                    h *= dinv[i]
-                    c = col[i]
-                    for k in range(m):
-                        G[q, k] += h * zt[k, c]
+                lam[i] = kd[i] * dinv[i] * dinv[i]
+            for i in range(m - 1):
+                ee[i] = ko[i] * dinv[i] * dinv[i + 1]
+            # unknowns whose eigenvector components are needed: both ends and the probes' nodes
+            col = np.full(m, -1, dtype=np.int64)
+            col[0] = 0
+            r = 1
+            for i in range(1, m):
+                need = i == m - 1
+                for q in range(n_q):
+                    if G_nodes[q, i] != 0.0:
+                        need = True
+                if need:
+                    col[i] = r
+                    r += 1
+            zt = np.zeros((m, r))
+            for i in range(m):
+                if col[i] >= 0:
+                    zt[i, col[i]] = 1.0
+            nrot, rot_i, rot_cs = tridiag_ql(lam, ee, zt, rot_i, rot_cs)
+            if nrot < 0:
+                out[:, :] = np.nan
+                tend[:] = np.nan
+                continue
+            # modal coefficients; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
+            ce = col[0]
+            ci = col[m - 1]
+            for k in range(m):
+                den = 1.0 / dt + theta * lam[k]
+                mu[k] = (1.0 / dt - (1.0 - theta) * lam[k]) / den
+                a0 = dinv[0] * zt[k, ce] * pe
+                a1 = dinv[m - 1] * zt[k, ci] * pi
+                r0[k] = a0 / den
+                r1[k] = a1 / den
+                # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
+                z[k] = (a0 * ue[0] + a1 * ui[0]) / lam[k]
+            if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T)
+                for i in range(m):
+                    z[i] = t0[j0 + i] / dinv[i]
+                apply_wt(nrot, rot_i, rot_cs, z)
+            # G = G_nodes V
+            for q in range(n_q):
+                for i in range(m):
+                    h = G_nodes[q, i]
+                    if h != 0.0:
+                        h *= dinv[i]
+                        c = col[i]
+                        for k in range(m):
+                            G[q, k] += h * zt[k, c]
+        else:
+            # per-term theta or nodes without capacity: the step M T^{n+1} = N T^n + p s^n with
+            # M = Cap/dt + K_theta, N = Cap/dt - K_{1-theta} (both symmetric tridiagonal, M positive
+            # definite) is diagonalised by N v = mu M v, V^T M V = I: with M = L L^T (L bidiagonal),
+            # A = L^-1 N L^-T = Q T Q^T (Householder), T = W diag(mu) W^T (QL), V = L^-T Q W.
+            thc = thetas[cand]
+            wbc = bc_thetas[cand]
+            md = np.empty(m)
+            mo = np.empty(m)
+            nd = np.empty(m)
+            no = np.empty(m)
+            operator.assemble_operator(g, thc, bc_type, bc_h, wbc, j0, m, md, mo)
+            operator.assemble_operator(g, 1.0 - thc, bc_type, bc_h, 1.0 - wbc, j0, m, nd, no)
+            for i in range(m):
+                ci_dt = cap[j0 + i] / dt
+                md[i] += ci_dt
+                nd[i] = ci_dt - nd[i]
+            ld[0] = np.sqrt(md[0])
+            for i in range(1, m):
+                lo[i - 1] = mo[i - 1] / ld[i - 1]
+                ld[i] = np.sqrt(md[i] - lo[i - 1] * lo[i - 1])
+            a = np.zeros((m, m))  # Y = L^-1 N, then A = L^-1 Y^T (= A^T)
+            for i in range(m):
+                a[i, i] = nd[i]
+                if i + 1 < m:
+                    a[i, i + 1] = -no[i]
+                    a[i + 1, i] = -no[i]
+            _lower_solve_rows(ld, lo, a)
+            a = np.ascontiguousarray(a.T)
+            _lower_solve_rows(ld, lo, a)
+            _householder(a, beta)
+            ee = np.zeros(m)
+            for i in range(m):
+                mu[i] = a[i, i]
+                if i + 1 < m:
+                    ee[i] = a[i + 1, i]
+            # columns mapped to the eigenvectors by the QL: V^T p_e, V^T p_i and V^T G_nodes[q]
+            # (V^T x = W^T Q^T L^-1 x)
+            zt = np.zeros((m, 2 + n_q))
+            zt[0, 0] = pe
+            zt[m - 1, 1] = pi
+            for q in range(n_q):
+                for i in range(m):
+                    zt[i, 2 + q] = G_nodes[q, i]
+            x = np.empty(m)
+            for c in range(2 + n_q):
+                for i in range(m):
+                    x[i] = zt[i, c]
+                _lower_solve(ld, lo, x)
+                _apply_qt(a, beta, x)
+                for i in range(m):
+                    zt[i, c] = x[i]
+            nrot, rot_i, rot_cs = tridiag_ql(mu, ee, zt, rot_i, rot_cs)
+            if nrot < 0:
+                out[:, :] = np.nan
+                tend[:] = np.nan
+                continue
+            for k in range(m):
+                r0[k] = zt[k, 0]
+                r1[k] = zt[k, 1]
+                # steady start: the fixed point of z <- mu z + r u^0 (that of M T = N T + p u^0: K T = p u^0)
+                z[k] = (r0[k] * ue[0] + r1[k] * ui[0]) / (1.0 - mu[k])
+                for q in range(n_q):
+                    G[q, k] = zt[k, 2 + q]
+            if t0.shape[0] == n_nodes:  # z = V^T M T = W^T Q^T L^T T
+                for i in range(m):
+                    z[i] = ld[i] * t0[j0 + i] + (lo[i] * t0[j0 + i + 1] if i + 1 < m else 0.0)
+                _apply_qt(a, beta, z)
+                apply_wt(nrot, rot_i, rot_cs, z)
         # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
         # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
         # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
@@ -678,12 +888,15 @@ def modal_batch(caps, gs, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan,
         _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
         for k in range(m):
             z[k] = rho[k] * y[k]
-        # final temperatures T = V z = Cap^-1/2 W z
+        # final temperatures T = V z (uniform: Cap^-1/2 W z; else L^-T Q W z)
         apply_w(nrot, rot_i, rot_cs, z)
+        if not uniform:
+            _apply_q(a, beta, z)
+            _lower_t_solve(ld, lo, z)
         for i in range(n_nodes):
             tend[i] = 0.0
         for i in range(m):
-            tend[j0 + i] = dinv[i] * z[i]
+            tend[j0 + i] = dinv[i] * z[i] if uniform else z[i]
         if j0 == 1:
             tend[0] = ue[n_steps]
         if boundary.is_known(bc_type[1]):
