@@ -728,18 +728,19 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
         lo = np.zeros(m)
         a = np.zeros((0, 0))
         beta = np.zeros(m)
+        # a symmetric tridiagonal eigenproblem (d, ee) whose QL rotations map the columns of zt
+        d = np.empty(m)
+        ee = np.zeros(m)
+        col = np.full(m, -1, dtype=np.int64)
         if uniform:
-            # S = Cap^-1/2 K Cap^-1/2 (tridiagonal)
+            # S = Cap^-1/2 K Cap^-1/2 (tridiagonal); zt: the rows of the identity at the unknowns whose
+            # eigenvector components are needed (both ends and the probes' nodes)
             for i in range(m):
                 dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
-            lam = np.empty(m)
-            ee = np.zeros(m)
             for i in range(m):
-                lam[i] = kd[i] * dinv[i] * dinv[i]
+                d[i] = kd[i] * dinv[i] * dinv[i]
             for i in range(m - 1):
                 ee[i] = ko[i] * dinv[i] * dinv[i + 1]
-            # unknowns whose eigenvector components are needed: both ends and the probes' nodes
-            col = np.full(m, -1, dtype=np.int64)
             col[0] = 0
             r = 1
             for i in range(1, m):
@@ -754,36 +755,6 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
             for i in range(m):
                 if col[i] >= 0:
                     zt[i, col[i]] = 1.0
-            nrot, rot_i, rot_cs = tridiag_ql(lam, ee, zt, rot_i, rot_cs)
-            if nrot < 0:
-                out[:, :] = np.nan
-                tend[:] = np.nan
-                continue
-            # modal coefficients; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
-            ce = col[0]
-            ci = col[m - 1]
-            for k in range(m):
-                den = 1.0 / dt + theta * lam[k]
-                mu[k] = (1.0 / dt - (1.0 - theta) * lam[k]) / den
-                a0 = dinv[0] * zt[k, ce] * pe
-                a1 = dinv[m - 1] * zt[k, ci] * pi
-                r0[k] = a0 / den
-                r1[k] = a1 / den
-                # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
-                z[k] = (a0 * ue[0] + a1 * ui[0]) / lam[k]
-            if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T)
-                for i in range(m):
-                    z[i] = t0[j0 + i] / dinv[i]
-                apply_wt(nrot, rot_i, rot_cs, z)
-            # G = G_nodes V
-            for q in range(n_q):
-                for i in range(m):
-                    h = G_nodes[q, i]
-                    if h != 0.0:
-                        h *= dinv[i]
-                        c = col[i]
-                        for k in range(m):
-                            G[q, k] += h * zt[k, c]
         else:
             # per-term theta or nodes without capacity: the step M T^{n+1} = N T^n + p s^n with
             # M = Cap/dt + K_theta, N = Cap/dt - K_{1-theta} (both symmetric tridiagonal, M positive
@@ -815,12 +786,11 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
             a = np.ascontiguousarray(a.T)
             _lower_solve_rows(ld, lo, a)
             _householder(a, beta)
-            ee = np.zeros(m)
             for i in range(m):
-                mu[i] = a[i, i]
+                d[i] = a[i, i]
                 if i + 1 < m:
                     ee[i] = a[i + 1, i]
-            # columns mapped to the eigenvectors by the QL: V^T p_e, V^T p_i and V^T G_nodes[q]
+            # zt: the columns V^T p_e, V^T p_i and V^T G_nodes[q] before the QL's rotations
             # (V^T x = W^T Q^T L^-1 x)
             zt = np.zeros((m, 2 + n_q))
             zt[0, 0] = pe
@@ -836,23 +806,51 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
                 _apply_qt(a, beta, x)
                 for i in range(m):
                     zt[i, c] = x[i]
-            nrot, rot_i, rot_cs = tridiag_ql(mu, ee, zt, rot_i, rot_cs)
-            if nrot < 0:
-                out[:, :] = np.nan
-                tend[:] = np.nan
-                continue
+        nrot, rot_i, rot_cs = tridiag_ql(d, ee, zt, rot_i, rot_cs)
+        if nrot < 0:
+            out[:, :] = np.nan
+            tend[:] = np.nan
+            continue
+        if uniform:
+            # d: the eigenvalues lambda of S; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
+            ce = col[0]
+            ci = col[m - 1]
             for k in range(m):
+                den = 1.0 / dt + theta * d[k]
+                mu[k] = (1.0 / dt - (1.0 - theta) * d[k]) / den
+                a0 = dinv[0] * zt[k, ce] * pe
+                a1 = dinv[m - 1] * zt[k, ci] * pi
+                r0[k] = a0 / den
+                r1[k] = a1 / den
+                # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
+                z[k] = (a0 * ue[0] + a1 * ui[0]) / d[k]
+            for q in range(n_q):  # G = G_nodes V
+                for i in range(m):
+                    h = G_nodes[q, i]
+                    if h != 0.0:
+                        h *= dinv[i]
+                        c = col[i]
+                        for k in range(m):
+                            G[q, k] += h * zt[k, c]
+        else:
+            # d: the eigenvalues mu of A
+            for k in range(m):
+                mu[k] = d[k]
                 r0[k] = zt[k, 0]
                 r1[k] = zt[k, 1]
                 # steady start: the fixed point of z <- mu z + r u^0 (that of M T = N T + p u^0: K T = p u^0)
                 z[k] = (r0[k] * ue[0] + r1[k] * ui[0]) / (1.0 - mu[k])
                 for q in range(n_q):
                     G[q, k] = zt[k, 2 + q]
-            if t0.shape[0] == n_nodes:  # z = V^T M T = W^T Q^T L^T T
-                for i in range(m):
+        if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T), or V^T M T = W^T Q^T L^T T
+            for i in range(m):
+                if uniform:
+                    z[i] = t0[j0 + i] / dinv[i]
+                else:
                     z[i] = ld[i] * t0[j0 + i] + (lo[i] * t0[j0 + i + 1] if i + 1 < m else 0.0)
+            if not uniform:
                 _apply_qt(a, beta, z)
-                apply_wt(nrot, rot_i, rot_cs, z)
+            apply_wt(nrot, rot_i, rot_cs, z)
         # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
         # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
         # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
