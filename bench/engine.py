@@ -188,6 +188,11 @@ def main(argv=None):
     batch = PropertyArrays.from_walls(walls)
     ts = timeit(lambda: prep.run_batch(batch), max(3, args.repeat // 5))
     rows.append(row(f"batch of 256 candidate walls ({os.cpu_count()} cores), per batch", ts, per_call=256))
+    res = prep.run_batch(batch)
+    batch_note = (
+        f"batch of 256: path {res.path}; theta raised by the theta rule in {int((res.implicit_links > 0).sum())} "
+        "of the candidates (the modal path's generalized eigenproblem)"
+    )
     # what a calibration asks for: the target rows only (here the three probes)
     targets = np.zeros(len(prep.probe_names) + 2, dtype=bool)
     targets[: len(prep.probe_names)] = True
@@ -292,6 +297,7 @@ def main(argv=None):
         f"(p10 {np.percentile(pairs, 10):.2f}, p90 {np.percentile(pairs, 90):.2f}); at the issue's 3.5 ms "
         f"reference: {3.5 * nl_ratio:.2f} ms"
     )
+    print(batch_note)
     print_user_level(user, eplus)
     for n, n_out, d_modal, d_general in mem:
         print(

@@ -310,9 +310,12 @@ class PreparedFD:
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
     # ------------------------------------------------------------------ fast path
-    def _output_plan(self, input_thetas: tuple[float, float]) -> modal.ModalPlan:
-        """The modal plan for these input thetas (:func:`wallcal.engines.modal.input_thetas`): that of
-        theta0 is kept; others (a candidate whose face terms are stiff) are kept while few."""
+    def _output_plan(self, input_thetas: tuple[float, float] | None = None) -> modal.ModalPlan:
+        """The modal plan for these input thetas (:func:`wallcal.engines.modal.input_thetas`; default: the
+        scheme's theta on both): that of theta0 is kept; others (a candidate whose face terms are stiff)
+        are kept while few."""
+        if input_thetas is None:
+            input_thetas = (self.theta, self.theta)
         plans = self.__dict__.setdefault("_plans", {})
         plan = plans.get(input_thetas)
         if plan is None:
