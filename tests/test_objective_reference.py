@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import types
 
 import numpy as np
 import pytest
@@ -184,3 +185,67 @@ def test_evaluator_candidates_with_lambda_t_and_contact_parameters_equal_simulat
     assert got == pytest.approx(cse, rel=1e-6)
     # and the candidate really differs from the base case
     assert abs(got - float(ev.objective(np.zeros((1, 2)))[0])) > 1e-3 * got
+
+
+def test_missing_samples_are_left_out_of_every_sum(weighted_study):
+    """Samples missing in the data (NaN) count in no sum: the CSE and RMSE over the valid samples only."""
+    study, res = weighted_study
+    from wallcal.simulation import prepare
+
+    cal = copy.deepcopy(study.raw["calibration"])
+    cal["targets"], cal["objective"] = TARGETS, "cse"
+    space = parse_space(study, cal)
+    base = prepare(study)
+    measured = base.measured.copy()
+    gaps = {"T3A": slice(100, 400), "qi": slice(0, 50)}
+    for t, sl in gaps.items():
+        measured.iloc[sl, measured.columns.get_loc(t)] = np.nan
+    ev = Evaluator(dataclasses.replace(base, measured=measured), space)
+    cse_t, rmse_t = ev.per_target(space.base[None])
+    for k, t in enumerate(TARGETS):
+        y = measured[t].to_numpy()
+        ok = np.isfinite(y)
+        assert ok.sum() < len(y) or t not in gaps
+        e = res.simulated[t].to_numpy()[ok] - y[ok]
+        assert cse_t[0, k] == pytest.approx(np.sum(e**2), rel=1e-8)
+        assert rmse_t[0, k] == pytest.approx(np.sqrt(np.mean(e**2)), rel=1e-8)
+    assert list(ev.n_valid) == [int(np.isfinite(measured[t]).sum()) for t in TARGETS]
+    r = ev.residuals(space.base[None])
+    assert float((r**2).sum()) == pytest.approx(float(cse_t.sum()), rel=1e-9)
+
+
+def test_evaluator_asks_the_engine_for_its_targets_only(example_study):
+    """The engine input of a calibration carries the target probes and faces only (no work for the others)."""
+    from wallcal.simulation import prepare
+
+    cal = copy.deepcopy(example_study.raw["calibration"])
+    cal["targets"] = ["T2A", "qi"]
+    ev = Evaluator(prepare(example_study), parse_space(example_study, cal))
+    assert ev.inp.probes == ("T2A",)
+    assert ev.inp.flux_faces == ("interior",)
+    assert ev.inp.flux_depths == ()
+    assert ev.keys == [("temperatures", "T2A"), ("fluxes", "interior")]
+
+
+def test_evaluator_time_is_the_sum_over_calls(example_study, monkeypatch):
+    """``seconds`` adds up the time of every simulate() call (a clock that ticks 1 s per reading)."""
+    from wallcal.calibration import objective
+    from wallcal.simulation import prepare
+
+    space = parse_space(example_study)
+    ev = Evaluator(prepare(example_study), space)
+    assert ev.seconds == 0.0 and ev.evaluations == 0
+    ticks = iter(range(100, 200, 3))  # each call reads the clock twice, 3 s apart
+    monkeypatch.setattr(objective, "time", types.SimpleNamespace(perf_counter=lambda: float(next(ticks))))
+    ev.simulate(space.base[None])
+    ev.simulate(np.stack([space.base, space.base]))
+    assert ev.seconds == 6.0 and ev.evaluations == 3
+
+
+def test_evaluator_refuses_an_engine_without_batches(example_study):
+    from wallcal.errors import EngineError
+    from wallcal.simulation import prepare
+
+    prepared = prepare(example_study, "energyplus")
+    with pytest.raises(EngineError, match=r"the energyplus engine runs no batches: prepare the data with needs="):
+        Evaluator(prepared, parse_space(example_study))

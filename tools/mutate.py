@@ -4,6 +4,7 @@ Usage::
 
     python tools/mutate.py [MODULE ...]       # e.g. src/wallcal/metrics.py; default: every module of TESTS
     python tools/mutate.py --report            # summarise the last runs only
+    python tools/mutate.py --recheck MODULE    # only re-run the mutants mutmut left "suspicious"
 
 Each module is mutated in its own scratch copy ``.mutate/<module>/`` (the repository's src/, tests/ and
 pyproject.toml plus a ``setup.cfg`` naming the module and its tests), with only the tests that exercise that
@@ -93,11 +94,45 @@ def run(module: str) -> None:
 
 
 def results(module: str) -> dict:
+    """Status of every mutant: mutmut's, with the plain-pytest re-runs of :func:`recheck` in place of its
+    "suspicious" and "not checked" ones."""
     meta = WORK / slug(module) / "mutants" / (module + ".meta")
     if not meta.exists():
         return {}
     codes = json.loads(meta.read_text())["exit_code_by_key"]
-    return {k: STATUS.get(v, "not checked" if v is None else "suspicious") for k, v in codes.items()}
+    out = {k: STATUS.get(v, "not checked" if v is None else "suspicious") for k, v in codes.items()}
+    rechecked = WORK / slug(module) / "recheck.json"
+    if rechecked.exists():
+        out.update({k: v for k, v in json.loads(rechecked.read_text()).items() if k in out})
+    return out
+
+
+def recheck(module: str) -> None:
+    """Re-run every mutant that mutmut left "suspicious" (its forked worker ended by a signal: on this host
+    mutmut's workers were sometimes sent SIGTERM a second after they started) or "not checked", one at a
+    time with plain pytest in a fresh process (``MUTANT_UNDER_TEST`` switches the mutant on): exit status 0
+    is a survivor, 1 a kill, 5 no tests. Results go to ``recheck.json`` next to the run."""
+    d = WORK / slug(module)
+    todo = sorted(k for k, v in results(module).items() if v in ("suspicious", "not checked"))
+    if not todo:
+        return
+    path = d / "recheck.json"
+    done = json.loads(path.read_text()) if path.exists() else {}
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "CI")}
+    env.update(NUMBA_NUM_THREADS="1", PYTHONPATH="src")
+    tests = [t for t in TESTS[module] if (REPO / t).exists()]
+    print(f"== {module}: {len(todo)} mutants re-run with plain pytest", flush=True)
+    for i, key in enumerate(todo):
+        cmd = ["nice", "-n", "15", sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
+        try:
+            code = subprocess.run(
+                cmd, cwd=d / "mutants", env={**env, "MUTANT_UNDER_TEST": key}, capture_output=True, timeout=600
+            ).returncode
+        except subprocess.TimeoutExpired:
+            code = 24
+        done[key] = {0: "survived", 1: "killed", 5: "no tests"}.get(code, "timeout" if code == 24 else "suspicious")
+        path.write_text(json.dumps(done, indent=0))  # progress is kept: an interrupted re-check resumes
+        print(f"   {i + 1}/{len(todo)} {key.rpartition('.')[2]}: {done[key]}", flush=True)
 
 
 def mutant_diffs(module: str) -> dict[str, str]:
@@ -158,14 +193,19 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("modules", nargs="*", help="source files (default: every module of TESTS)")
     ap.add_argument("--report", action="store_true", help="only summarise the last runs")
+    ap.add_argument("--recheck", action="store_true", help="only re-run the suspicious mutants of the last runs")
     a = ap.parse_args(argv)
     modules = a.modules or list(TESTS)
     unknown = [m for m in modules if m not in TESTS]
     if unknown:
         ap.error(f"no test selection for {unknown}; add them to TESTS in tools/mutate.py")
-    if not a.report:
+    if a.recheck:
+        for m in modules:
+            recheck(m)
+    elif not a.report:
         for m in modules:
             run(m)
+            recheck(m)
     text = report(modules)
     WORK.mkdir(exist_ok=True)
     (WORK / "summary.txt").write_text(text + "\n")

@@ -85,7 +85,6 @@ class Evaluator:
     """
 
     def __init__(self, prepared: Prepared, space: ParameterSpace):
-        self.prepared = prepared
         self.space = space
         study = prepared.study
         if not prepared.engine.capabilities.batches:
@@ -135,7 +134,6 @@ class Evaluator:
         self.y = np.array(self.y)
         self.mask = np.array(self.mask)
         self.n_valid = self.mask.sum(axis=1)
-        self.probe_params = {p.probe: j for j, p in enumerate(space.parameters) if p.probe is not None}
         self.evaluations = 0
         self.seconds = 0.0
 
