@@ -263,3 +263,152 @@ def test_heavy_threshold_is_strictly_above_20_kJ():
     assert iso9869.average_method(*steady(72), wall=wall).heavy is False
     wall = Wall((Layer("a", 0.1, 0.5, 200.1, 1000.0),))
     assert iso9869.average_method(*steady(72), wall=wall).heavy is True
+
+
+# ---------------------------------------------------------------------------- an unsteady test, by hand
+def _two_layer_wall(contact=0.0, last_contact=0.0):
+    return Wall(
+        (
+            Layer("brick", 0.2, 0.8, 1800.0, 900.0, contact_resistance=contact),  # R 0.25, C 324 kJ/(m2K)
+            Layer("ins", 0.1, 0.04, 30.0, 1400.0, contact_resistance=last_contact),  # R 2.5, C 4.2 kJ/(m2K)
+        )
+    )
+
+
+def _unsteady(days=4, dt=HOUR):
+    """Interior and exterior surface temperatures that drift and swing (neither is zero), and a flux
+    that is not their steady ratio: every sum of the method is exercised."""
+    t = np.arange(int(days * 24 * HOUR / dt)) * dt
+    h = t / HOUR
+    ti = 20.0 + 0.02 * h + 0.5 * np.sin(2 * np.pi * h / 24)
+    te = 5.0 - 0.03 * h + 4.0 * np.sin(2 * np.pi * (h - 6) / 24)
+    q = -(ti - te) / 2.0 + 1.5 * np.cos(2 * np.pi * h / 24) - 0.2
+    return t, q, ti, te
+
+
+@pytest.mark.parametrize("q_side", ["interior", "exterior"])
+@pytest.mark.parametrize("contact", [0.0, 0.5])
+def test_average_method_on_an_unsteady_record_by_hand(q_side, contact):
+    t, q, ti, te = _unsteady()
+    wall = _two_layer_wall(contact, last_contact=0.7)  # a contact resistance on the last layer has no neighbour
+    res = iso9869.average_method(t, q, ti, te, wall=wall, q_side=q_side)
+    n, k24 = t.size, 24
+    dT, qo = ti - te, -q
+    r_run = np.cumsum(dT) / np.cumsum(qo)
+    assert res.r_value == pytest.approx(dT.sum() / qo.sum(), rel=1e-13)
+    np.testing.assert_allclose(res.r_running, r_run, rtol=1e-13)
+    b = res.verdict["last_24h"]
+    assert b.value == pytest.approx(abs(r_run[-1] - r_run[n - 1 - k24]) / abs(r_run[n - 1 - k24]), rel=1e-12)
+    assert b.passed is (b.value <= 0.05)
+    # c): INT(2 x 4 / 3) = 2 days = 48 readings at each end
+    c = res.verdict["first_last_two_thirds"]
+    r_first, r_last = dT[:48].sum() / qo[:48].sum(), dT[-48:].sum() / qo[-48:].sum()
+    assert c.value == pytest.approx(abs(r_first - r_last) / abs(r_last), rel=1e-12)
+    assert c.detail == f"2 day(s): R_first = {r_first:.4g}, R_last = {r_last:.4g} m2K/W"
+    # d): the layers as fractions of R = 0.25 + contact + 2.5 (the last layer's contact is not inside the wall)
+    r_tot = 0.25 + contact + 2.5
+    layers = [(324e3, 0.0, 0.25 / r_tot), (4.2e3, (0.25 + contact) / r_tot, 2.5 / r_tot)]
+    dti = ti[-24:].mean() - ti[:24].mean()
+    dte = te[-24:].mean() - te[:24].mean()
+    m1 = [s0 + ds / 2 for _, s0, ds in layers]
+    m2 = [s0**2 + s0 * ds + ds**2 / 3 for _, s0, ds in layers]
+    caps = [cc for cc, _, _ in layers]
+    stored = sum(cc * (a * dti + (1 - a) * dte) for cc, a in zip(caps, m1, strict=True))
+    assert res.stored_heat_change_J_m2 == pytest.approx(stored, rel=1e-12)
+    assert res.heat_through_J_m2 == pytest.approx(abs(q.sum()) * HOUR, rel=1e-13)
+    if q_side == "interior":
+        f_i = sum(cc * b2 for cc, b2 in zip(caps, m2, strict=True))
+        f_e = sum(cc * (a - b2) for cc, a, b2 in zip(caps, m1, m2, strict=True))
+        r_corr = dT.sum() / (qo.sum() - (f_i * dti + f_e * dte) / HOUR)
+    else:
+        f_i = sum(cc * (a - b2) for cc, a, b2 in zip(caps, m1, m2, strict=True))
+        f_e = sum(cc * (1 - 2 * a + b2) for cc, a, b2 in zip(caps, m1, m2, strict=True))
+        r_corr = dT.sum() / (qo.sum() + (f_i * dti + f_e * dte) / HOUR)
+    assert iso9869.storage_factors(wall, q_side) == (pytest.approx(f_i, rel=1e-12), pytest.approx(f_e, rel=1e-12))
+    assert res.r_storage_corrected == pytest.approx(r_corr, rel=1e-12)
+    d = res.verdict["storage"]
+    assert d.value == pytest.approx(abs(stored) / (abs(q.sum()) * HOUR), rel=1e-12)
+    assert d.passed is (d.value < 0.05) and d.required is True
+    assert f"dT_i = {dti:.3g} K, dT_e = {dte:.3g} K" in d.detail
+
+
+def test_last_24h_needs_one_reading_more_than_a_day():
+    # 25 hourly readings: R 24 h before the end is the first running value; 24 readings: too short
+    t, q, ti, te = _unsteady(days=25 / 24)
+    res = iso9869.average_method(t, q, ti, te, heavy=False)
+    r_run = np.cumsum(ti - te) / np.cumsum(-q)
+    assert res.verdict["last_24h"].value == pytest.approx(abs(r_run[-1] - r_run[0]) / abs(r_run[0]), rel=1e-12)
+    res = iso9869.average_method(t[:24], q[:24], ti[:24], te[:24], heavy=False)
+    assert res.verdict["last_24h"].detail == "test shorter than 24 h"
+
+
+def test_two_thirds_boundaries():
+    # 36 h: INT(2 x 1.5 / 3) = 1 day of readings at each end, the last day overlapping the first
+    t, q, ti, te = _unsteady(days=1.5)
+    c = iso9869.average_method(t, q, ti, te, heavy=False).verdict["first_last_two_thirds"]
+    dT, qo = ti - te, -q
+    assert c.detail.startswith("1 day(s): ")
+    assert c.value == pytest.approx(
+        abs(dT[:24].sum() / qo[:24].sum() - dT[-24:].sum() / qo[-24:].sum()) / abs(dT[-24:].sum() / qo[-24:].sum())
+    )
+
+
+def test_whole_days_within_half_a_reading():
+    # 48 h + 1 reading of 10 min is not a whole number of days; exactly 48 h is
+    for hours, whole in ((48.0, True), (48.0 + 1 / 6, False)):
+        res = iso9869.average_method(*steady(hours), heavy=True)
+        assert res.verdict["whole_days"].passed is whole, hours
+
+
+def test_input_errors_name_the_series():
+    t, q, ti, te = steady(72)
+    for kw, name in (("t_int_surface_C", "t_int_surface_C"), ("t_ext_surface_C", "t_ext_surface_C")):
+        args = {"t_int_surface_C": ti, "t_ext_surface_C": te, kw: np.zeros((2, t.size))}
+        with pytest.raises(DataError, match=rf"^{name}: expected a 1-D series, got shape \(2, {t.size}\)$"):
+            iso9869.average_method(t, q, args["t_int_surface_C"], args["t_ext_surface_C"])
+        args = {"t_int_surface_C": ti, "t_ext_surface_C": te, kw: np.zeros(t.size - 1)}
+        with pytest.raises(DataError, match=rf"^{name}: has {t.size - 1} values, times_s has {t.size}$"):
+            iso9869.average_method(t, q, args["t_int_surface_C"], args["t_ext_surface_C"])
+    q2 = q.copy()
+    q2[7] = np.inf
+    with pytest.raises(DataError, match=r"^q_W_m2: contains NaN or infinite values at index 7$"):
+        iso9869.average_method(t, q2, ti, te)
+    with pytest.raises(DataError, match=r"^times_s: expected a 1-D series"):
+        iso9869.average_method(np.zeros((2, 3)), q, ti, te)
+    t2 = t.copy()
+    t2[10] = t2[9]  # a repeated time
+    with pytest.raises(DataError, match=r"^times_s: must be strictly increasing$"):
+        iso9869.average_method(t2, q, ti, te)
+    t3 = t * 1.0
+    t3[10:] += 0.5  # a step 0.5 s longer than the 600 s of the others: within 1e-3 dt, accepted
+    assert iso9869.average_method(t3, q, ti, te, heavy=False).r_value == pytest.approx(2.5)
+    with pytest.raises(StudyError, match=r"q_side: must be 'interior' or 'exterior', got 'middle'"):
+        iso9869.average_method(t, q, ti, te, q_side="middle")
+    assert iso9869.average_method(t, q, ti, te, q_side="exterior", heavy=False).r_value == pytest.approx(2.5)
+    for tol in (0.0, 1.0, -0.1):
+        with pytest.raises(StudyError, match=r"tolerance: must be in \(0, 1\), got "):
+            iso9869.average_method(t, q, ti, te, tolerance=tol)
+    assert iso9869.average_method(t, q, ti, te, tolerance=0.999, heavy=False).verdict["last_24h"].limit == 0.999
+
+
+def test_walls_without_resistance_are_refused():
+    for thickness, conductivity in ((0.0, 0.5), (0.1, float("inf"))):
+        wall = Wall((Layer("x", thickness, conductivity, 30.0, 1000.0),))
+        with pytest.raises(StudyError, match=r"wall: surface-to-surface resistance must be > 0, got 0 m2K/W"):
+            iso9869.storage_factors(wall)
+
+
+def test_undetermined_statement_and_missing_criterion():
+    res = iso9869.average_method(*steady(72), heavy=True)
+    assert res.verdict.applicable is None
+    assert res.verdict.statement == "undetermined: not evaluated storage"
+    with pytest.raises(KeyError, match="nothing"):
+        res.verdict["nothing"]
+
+
+def test_relative_deviation():
+    assert iso9869._ratio(1.1, 1.0) == pytest.approx(0.1)
+    assert iso9869._ratio(3.0, -2.0) == pytest.approx(2.5)
+    assert iso9869._ratio(1.0, 0.0) == np.inf
+    assert iso9869._ratio(float("nan"), 1.0) == np.inf
+    assert iso9869._ratio(1.0, float("inf")) == np.inf

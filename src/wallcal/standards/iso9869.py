@@ -61,7 +61,7 @@ def _layer_positions(wall):
     rs, cs = np.array(rs, float), np.array(cs, float)
     r_total = rs.sum()
     if not np.isfinite(r_total) or r_total <= 0:
-        raise StudyError([f"wall: surface-to-surface resistance must be > 0, got {r_total!r} m2K/W"])
+        raise StudyError([f"wall: surface-to-surface resistance must be > 0, got {float(r_total):g} m2K/W"])
     start = np.concatenate([[0.0], np.cumsum(rs)[:-1]]) / r_total
     return cs, start, rs / r_total
 
