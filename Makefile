@@ -34,7 +34,8 @@ lint: install
 # Numba-jitted kernels are not mutated (mutmut skips decorated functions; see docs/testing.md).
 MUTATE_MODULES ?= src/wallcal/wall.py src/wallcal/grid.py src/wallcal/metrics.py \
 	src/wallcal/calibration/objective.py src/wallcal/standards/iso6946.py src/wallcal/standards/iso10456.py \
-	src/wallcal/standards/iso13786.py src/wallcal/standards/iso9869.py src/wallcal/standards/insitu.py
+	src/wallcal/standards/iso13786.py src/wallcal/standards/iso9869.py src/wallcal/standards/insitu.py \
+	src/wallcal/engines/operator.py
 
 mutate:
 	$(MAKE) install EXTRAS=$(EXTRAS),mutation

@@ -412,3 +412,28 @@ def test_relative_deviation():
     assert iso9869._ratio(1.0, 0.0) == np.inf
     assert iso9869._ratio(float("nan"), 1.0) == np.inf
     assert iso9869._ratio(1.0, float("inf")) == np.inf
+
+
+def test_criteria_that_cannot_be_evaluated_keep_their_description_and_limit():
+    """Every row of the table names the criterion, whether it applies and its limit, evaluated or not."""
+    desc_b = "final R within 5 % of R 24 h earlier"
+    desc_c = "R of the first and of the last INT(2 DT/3) days within 5 %"
+    desc_d = "change of stored heat < 5 % of the heat through the element (heavy elements)"
+
+    def row(res, name):
+        c = res.verdict[name]
+        return (c.description, c.required, c.passed, c.limit)
+
+    t, q, ti, te = steady(84, dt=420.0)  # 420 s does not divide 24 h
+    res = iso9869.average_method(t, q, ti, te, heavy=False, tolerance=0.07)
+    assert row(res, "last_24h") == (desc_b, True, None, 0.07)
+    assert row(res, "first_last_two_thirds") == (desc_c, True, False, 0.07)
+    res = iso9869.average_method(*steady(12), heavy=False, tolerance=0.07)  # shorter than a day
+    assert row(res, "last_24h") == (desc_b, True, False, 0.07)
+    assert row(res, "first_last_two_thirds") == (desc_c, True, False, 0.07)
+    assert row(res, "storage") == (desc_d, False, None, 0.07)  # light element: d) does not apply
+    assert row(res, "whole_days")[1:] == (False, False, 24.0)
+    res = iso9869.average_method(*steady(72), heavy=True, tolerance=0.07)
+    assert row(res, "storage") == (desc_d, True, None, 0.07)
+    assert res.verdict.statement == "undetermined: not evaluated storage"
+    np.testing.assert_array_equal(res.times_s, steady(72)[0])
