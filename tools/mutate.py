@@ -43,7 +43,11 @@ TESTS: dict[str, list[str]] = {
     "src/wallcal/standards/iso9869.py": ["tests/test_iso9869.py"],
     "src/wallcal/standards/insitu.py": ["tests/test_cli_standards.py", "tests/test_insitu.py"],
     "src/wallcal/grid.py": ["tests/test_reference_physics.py"],
-    "src/wallcal/engines/operator.py": ["tests/test_extreme_walls.py", "tests/test_reference_engine.py"],
+    "src/wallcal/engines/operator.py": [
+        "tests/test_theta_rule.py",
+        "tests/test_extreme_walls.py",
+        "tests/test_reference_engine.py",
+    ],
 }
 
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped", 36: "timeout"}
