@@ -131,7 +131,7 @@ def recheck(module: str) -> None:
         cmd = ["nice", "-n", "15", sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
         try:
             code = subprocess.run(
-                cmd, cwd=d / "mutants", env={**env, "MUTANT_UNDER_TEST": key}, capture_output=True, timeout=600
+                cmd, cwd=d / "mutants", env={**env, "MUTANT_UNDER_TEST": key}, capture_output=True, timeout=240
             ).returncode
         except subprocess.TimeoutExpired:
             code = 24
@@ -182,12 +182,12 @@ def report(modules: list[str]) -> str:
             out.append(f"{m}: not run")
             continue
         c = Counter(r.values())
-        killed = c["killed"] + c["caught by type check"]
+        killed = c["killed"] + c["caught by type check"] + c["timeout"]  # a mutant that hangs the tests is detected
         tk, tn = tk + killed, tn + len(r)
         out.append(f"{m}: {killed}/{len(r)} killed ({100 * killed / len(r):.1f} %) " + dict(c).__repr__())
         diffs = mutant_diffs(m)
         for k, v in sorted(r.items()):
-            if v not in ("killed", "caught by type check"):
+            if v not in ("killed", "caught by type check", "timeout"):
                 out.append(f"    {v:10s} {k.rpartition('.')[2]}: {diffs.get(k, '?')}")
     if tn:
         out.append(f"all: {tk}/{tn} killed ({100 * tk / tn:.1f} %)")
