@@ -342,3 +342,72 @@ def test_profile_bad_arguments_and_times():
     t = p.at_times([0.0, DAY / 4])
     assert t.shape == (2, 2)
     assert t[0, 0] == pytest.approx(2.0) and t[1, 0] == pytest.approx(0.0, abs=1e-12)
+
+
+# --------------------------------------------------------------------------- every figure of a mixed wall, by hand
+def _hand_layer(d, lam, rho, c, period):
+    delta = np.sqrt(lam * period / (np.pi * rho * c))
+    k = (1 + 1j) / delta
+    return np.array([[np.cosh(k * d), -np.sinh(k * d) / (lam * k)], [-lam * k * np.sinh(k * d), np.cosh(k * d)]]), delta
+
+
+def _r(res):
+    return np.array([[1.0, -res], [0.0, 1.0]], dtype=complex)
+
+
+def test_every_characteristic_of_a_wall_with_contact_and_no_mass_layers_by_hand():
+    """Plaster (a 0.1 m2K/W contact after it), a no-mass layer of 0.2 m2K/W, brick (its contact resistance
+    of 0.3 m2K/W is the last layer's: outside the wall, ignored), a 12 h period and surface resistances
+    other than the defaults: the transfer matrices, admittances, leads, U, decrement, areal capacities with
+    and without surfaces, penetration depths and xi, all formed here from the closed-form layer matrix."""
+    period = 12 * 3600.0
+    wall = Wall(
+        (
+            Layer("p", 0.02, 0.7, 1400.0, 1000.0, contact_resistance=0.1),
+            Layer("m", 0.01, thermal_resistance=0.2),
+            Layer("b", 0.24, 0.9, 1800.0, 850.0, contact_resistance=0.3),
+        )
+    )
+    dc = iso13786.dynamic_characteristics(wall, period, rsi=0.17, rse=0.06)
+    zp, dp = _hand_layer(0.02, 0.7, 1400.0, 1000.0, period)
+    zb, db = _hand_layer(0.24, 0.9, 1800.0, 850.0, period)
+    zs = zp @ _r(0.1) @ _r(0.2) @ zb
+    z = _r(0.06) @ zs @ _r(0.17)
+    np.testing.assert_allclose(dc.Z, z, rtol=1e-12)
+    np.testing.assert_allclose(dc.Z_surface, zs, rtol=1e-12)
+    assert dc.period_s == period
+    y11, y12, y22 = -z[0, 0] / z[0, 1], -1 / z[0, 1], -z[1, 1] / z[0, 1]
+    assert dc.Y11 == pytest.approx(y11, rel=1e-12) and dc.Y22 == pytest.approx(y22, rel=1e-12)
+    assert dc.Y12 == pytest.approx(y12, rel=1e-12) and dc.Y21 == pytest.approx(y12, rel=1e-9)
+    u = 1 / (0.17 + 0.06 + 0.02 / 0.7 + 0.1 + 0.2 + 0.24 / 0.9)
+    assert dc.u_value == pytest.approx(u, rel=1e-14)
+    assert dc.decrement_factor == pytest.approx(abs(y12) / u, rel=1e-12)
+    w = period / (2 * np.pi)
+    assert dc.admittance_time_lead_interior_h == pytest.approx(np.angle(y11) * w / 3600, rel=1e-12)
+    assert dc.admittance_time_lead_exterior_h == pytest.approx(np.angle(y22) * w / 3600, rel=1e-12)
+    assert dc.kappa1 == pytest.approx(w * abs((zs[0, 0] - 1) / zs[0, 1]), rel=1e-12)
+    assert dc.kappa2 == pytest.approx(w * abs((zs[1, 1] - 1) / zs[0, 1]), rel=1e-12)
+    assert dc.kappa1_with_surfaces == pytest.approx(w * abs((z[0, 0] - 1) / z[0, 1]), rel=1e-12)
+    assert dc.kappa2_with_surfaces == pytest.approx(w * abs((z[1, 1] - 1) / z[0, 1]), rel=1e-12)
+    assert dc.penetration_depths_m == pytest.approx({"p": dp, "b": db}, rel=1e-14)
+    assert dc.xi == pytest.approx({"p": 0.02 / dp, "b": 0.24 / db}, rel=1e-14)
+    # the lag: the phase of 1 / Y12, unwrapped (the brick alone is more than a 12 h period's quarter)
+    assert abs(np.exp(1j * (dc.time_shift_h * 3600 / w + np.angle(y12))) - 1) < 1e-9
+    assert 0 < dc.time_shift_h < 12
+    assert iso13786.penetration_depth(0.9, 1800.0, 850.0, period) == pytest.approx(db, rel=1e-14)
+    assert isinstance(iso13786.penetration_depth(0.9, 1800.0, 850.0, period), float)
+    np.testing.assert_allclose(iso13786.penetration_depth([0.7, 0.9], [1400, 1800], [1000, 850], period), [dp, db])
+    text = dc.summary()
+    assert text.startswith(f"period 12 h: U = {u:.4f} W/(m2K), |Y12| = {abs(y12):.5f} W/(m2K), ")
+    assert f"|Y11| = {abs(y11):.3f} W/(m2K) (lead {np.angle(y11) * w / 3600:.2f} h)" in text
+    assert f"|Y22| = {abs(y22):.3f} W/(m2K) (lead {np.angle(y22) * w / 3600:.2f} h)" in text
+    assert text.endswith(f"kappa1 = {dc.kappa1 / 1000:.2f} kJ/(m2K), kappa2 = {dc.kappa2 / 1000:.2f} kJ/(m2K)")
+
+
+def test_periods_must_be_positive_and_finite():
+    wall = Wall((concrete(),))
+    for bad in (0.0, -1.0, float("inf"), float("nan")):
+        with pytest.raises(StudyError, match="period"):
+            iso13786.dynamic_characteristics(wall, bad)
+    foil = Wall((Layer("f", 1e-4, 50.0, 7800.0, 500.0),))  # 0.1 mm of steel: penetration depth 1.4 mm at 0.5 s
+    assert iso13786.dynamic_characteristics(foil, 0.5).period_s == 0.5  # half a second is a period too
