@@ -411,3 +411,115 @@ def test_periods_must_be_positive_and_finite():
             iso13786.dynamic_characteristics(wall, bad)
     foil = Wall((Layer("f", 1e-4, 50.0, 7800.0, 500.0),))  # 0.1 mm of steel: penetration depth 1.4 mm at 0.5 s
     assert iso13786.dynamic_characteristics(foil, 0.5).period_s == 0.5  # half a second is a period too
+
+
+def _propagate(segments, theta0, q0, x_want, period, side):
+    """The periodic field by transfer from the exterior face (x inwards, q positive inwards): a layer is
+    theta(x) = theta0 cosh(k x) - q0 sinh(k x) / (lam k), q = q0 cosh(k x) - lam k theta0 sinh(k x); a jump
+    of resistance R drops theta by R q; a no-mass layer of thickness t drops it linearly."""
+    out_t, out_q = [], []
+    for xw in x_want:
+        th, q, x = theta0, q0, 0.0
+        for kind, a, b in segments:
+            if kind == "layer":
+                t, (lam, rho, c) = a, b
+                k = (1 + 1j) / np.sqrt(lam * period / (np.pi * rho * c))
+                s = min(max(xw - x, 0.0), t)
+                th, q = (
+                    th * np.cosh(k * s) - q * np.sinh(k * s) / (lam * k),
+                    q * np.cosh(k * s) - lam * k * th * np.sinh(k * s),
+                )
+                x += t
+                if xw < x - 1e-12:  # (at the layer's end: on to a jump there, if any)
+                    break
+            elif kind == "linear":
+                t, r = a, b
+                s = min(max(xw - x, 0.0), t)
+                th = th - r * (s / t) * q
+                x += t
+                if xw < x - 1e-12:
+                    break
+            else:  # a jump at x
+                r = a
+                at = abs(xw - x) < 1e-12
+                if at and side == "exterior":
+                    break
+                th_after = th - r * q
+                if at and side == "mean":
+                    th = 0.5 * (th + th_after)
+                    break
+                th = th_after
+                if at:
+                    break
+        out_t.append(th)
+        out_q.append(q)
+    return np.array(out_t), np.array(out_q)
+
+
+@pytest.mark.parametrize("side", ["mean", "exterior", "interior"])
+def test_profile_through_jumps_and_no_mass_layers_by_hand(side):
+    """A contact resistance (jump), a no-mass layer with thickness (linear drop over it) and one of zero
+    thickness (jump), at depths inside layers and on every interface."""
+    period = DAY
+    wall = Wall(
+        (
+            Layer("a", 0.05, 1.0, 2000.0, 900.0, contact_resistance=0.02),
+            Layer("gap", 0.03, thermal_resistance=0.17),
+            Layer("b", 0.12, 0.04, 40.0, 1030.0),
+            Layer("film", 0.0, thermal_resistance=0.05),
+            Layer("c", 0.0125, 0.21, 900.0, 1000.0, contact_resistance=0.4),  # the last layer's: ignored
+        )
+    )
+    segs = [
+        ("layer", 0.05, (1.0, 2000.0, 900.0)),
+        ("jump", 0.02, None),
+        ("linear", 0.03, 0.17),
+        ("layer", 0.12, (0.04, 40.0, 1030.0)),
+        ("jump", 0.05, None),
+        ("layer", 0.0125, (0.21, 900.0, 1000.0)),
+    ]
+    L = 0.05 + 0.03 + 0.12 + 0.0125
+    te, ti = 2.0 * np.exp(0.4j), 0.7 - 0.2j
+    # theta(L) is linear in q0: two propagations give it
+    t0, _ = _propagate(segs, te, 0.0, [L], period, "interior")
+    t1, _ = _propagate(segs, te, 1.0, [L], period, "interior")
+    q0 = (ti - t0[0]) / (t1[0] - t0[0])
+    x = np.array([0.0, 0.02, 0.05, 0.065, 0.08, 0.14, 0.2, 0.205, L])
+    theta, q = _propagate(segs, te, q0, x, period, side)
+    p = iso13786.periodic_profile(wall, period, te, ti, x, interface_side=side)
+    np.testing.assert_allclose(p.temperature, theta, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(p.heat_flux, q, rtol=1e-10, atol=1e-12)
+    assert p.q_exterior == pytest.approx(q0, rel=1e-10)
+
+
+def test_profile_and_characteristics_refuse_bad_layers_with_every_problem_named():
+    bad = Wall(
+        (
+            Layer("a", 0.0, 1.0, 2000.0, 900.0),
+            Layer("b", 0.1, 0.0, -1.0, float("nan")),
+            Layer("m", 0.01, thermal_resistance=-0.1),
+        )
+    )
+    with pytest.raises(StudyError) as exc:
+        iso13786.periodic_profile(bad, DAY, 1.0, 0.0, [0.0])
+    msg = str(exc.value)
+    for part in (
+        "wall.layers['a'].thickness: must be > 0, got 0.0",
+        "wall.layers['b'].conductivity: must be > 0, got 0.0",
+        "wall.layers['b'].density: must be > 0, got -1.0",
+        "wall.layers['b'].specific_heat: must be > 0, got nan",
+        "wall.layers['m']: no-mass layer needs thermal_resistance >= 0",
+    ):
+        assert part in msg, part
+    with pytest.raises(StudyError) as exc:
+        iso13786.dynamic_characteristics(bad)
+    msg = str(exc.value)
+    for part in (
+        "wall.layers['a'].thickness: must be > 0, got 0.0",
+        "wall.layers['b'].conductivity: must be > 0 for ISO 13786, got 0.0",
+        "wall.layers['b'].specific_heat: must be > 0 for ISO 13786, got nan",
+        "wall.layers['m'].thermal_resistance: must be >= 0",
+    ):
+        assert part in msg, part
+    with pytest.raises(StudyError, match="wall.layers: the wall has no layers"):
+        iso13786.periodic_profile(Wall(()), DAY, 1.0, 0.0, [0.0])
