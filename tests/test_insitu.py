@@ -104,7 +104,8 @@ def test_sensor_choice_and_its_errors(study, meas):
     only_qe = dataclasses.replace(study, sensors=tuple(s for s in study.sensors if s.name != "qi"))
     with pytest.raises(
         StudyError,
-        match=r"no heat_flux sensor at the interior face; heat_flux sensors in the study: qe \(exterior\) \(use --face\)",
+        match=r"no heat_flux sensor at the interior face; heat_flux sensors in the study: "
+        r"qe \(exterior\) \(use --face\)",
     ):
         iso9869_for_study(only_qe, measurements=meas)
     qi = study.sensor("qi")
