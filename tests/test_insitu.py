@@ -200,3 +200,59 @@ def test_needs_surface_temperatures_on_both_faces(study, meas):
         "ISO 9869 needs measured surface temperatures on both faces, but boundary.interior.type is "
         "'air_temperature' (not \"surface_temperature\")"
     )
+
+
+def _axes_of(r, hours=None, title="Campaign A"):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from wallcal.standards.insitu import _draw
+
+    fig, ax = plt.subplots()
+    try:
+        _draw(ax, r.times_s / 3600 if hours is None else hours, r.res, r.sensor, r.face, title)
+        fig.canvas.draw()
+        return ax, fig
+    finally:
+        plt.close(fig)
+
+
+def test_the_figure_shows_the_running_estimate_the_band_and_the_last_day(study, meas):
+    r = iso9869_for_study(study, measurements=meas)
+    res = r.res
+    ax, _ = _axes_of(r)
+    hours = r.times_s / 3600
+    (line,) = [ln for ln in ax.get_lines() if ln.get_label() == "running estimate"]
+    np.testing.assert_array_equal(line.get_xdata(), hours)
+    np.testing.assert_array_equal(line.get_ydata(), res.r_running)
+    (mark,) = [ln for ln in ax.get_lines() if ln.get_label() == "24 h before the end"]
+    assert list(mark.get_xdata()) == [192.0 - 24, 192.0 - 24]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == [f"final R = {res.r_value:.2f} m2K/W ± 5 %", "running estimate", "24 h before the end"]
+    ys = ax.patches[0].get_extents()  # the band's span in display units: check through the data transform
+    lo_band, hi_band = ax.transData.inverted().transform([[0, ys.y0], [0, ys.y1]])[:, 1]
+    assert (lo_band, hi_band) == (pytest.approx(0.95 * res.r_value), pytest.approx(1.05 * res.r_value))
+    late = res.r_running[hours >= 24.0]
+    lo, hi = min(late.min(), 0.9 * res.r_value), max(late.max(), 1.1 * res.r_value)
+    assert ax.get_ylim() == (pytest.approx(lo - 0.05 * (hi - lo)), pytest.approx(hi + 0.05 * (hi - lo)))
+    assert ax.get_xlabel() == "elapsed time [h]" and ax.get_ylabel() == "R (surface to surface) [m2K/W]"
+    assert ax.get_title() == f"Campaign A: ISO 9869-1 average method (qi, interior face)\n{res.verdict.statement}"
+    # a record of a day or less has no mark, and the axis is scaled from a quarter of it on; no title prefix
+    short = dataclasses.replace(
+        r,
+        times_s=r.times_s[:240],
+        res=iso9869.average_method(
+            r.times_s[:240], r.selection["qi"].to_numpy()[:240], r.selection["interior"].to_numpy()[:240],
+            r.selection["exterior"].to_numpy()[:240], heavy=False,
+        ),
+    )  # fmt: skip
+    ax, _ = _axes_of(short, title="")
+    assert [ln.get_label() for ln in ax.get_lines()] == ["running estimate"]
+    h = short.times_s / 3600
+    late = short.res.r_running[h >= 0.25 * 20.0]
+    rv = short.res.r_value
+    lo, hi = min(late.min(), 0.9 * rv), max(late.max(), 1.1 * rv)
+    assert ax.get_ylim() == (pytest.approx(lo - 0.05 * (hi - lo)), pytest.approx(hi + 0.05 * (hi - lo)))
+    assert ax.get_title().startswith("ISO 9869-1 average method (qi, interior face)\n")

@@ -282,28 +282,32 @@ def _figure(path: Path, hours: np.ndarray, res, sensor: str, face: str, title: s
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     try:
-        r_end = res.r_value
-        ax.axhspan(0.95 * r_end, 1.05 * r_end, color="tab:green", alpha=0.2, label=f"final R = {r_end:.2f} m2K/W ± 5 %")
-        ax.plot(hours, res.r_running, color="tab:blue", lw=1.2, label="running estimate")
-        if res.duration_h > 24:
-            ax.axvline(res.duration_h - 24, color="0.5", ls=":", lw=1, label="24 h before the end")
-        ax.set_xlabel("elapsed time [h]")
-        ax.set_ylabel("R (surface to surface) [m2K/W]")
-        # the first day can be wild (sum of q near 0): scale the axis on the rest of the record
-        late = res.r_running[hours >= min(24.0, 0.25 * res.duration_h)]
-        finite = late[np.isfinite(late)]
-        if finite.size:
-            lo, hi = float(finite.min()), float(finite.max())
-            lo, hi = min(lo, 0.9 * r_end), max(hi, 1.1 * r_end)
-            ax.set_ylim(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
-        ax.set_title(
-            f"{title + ': ' if title else ''}ISO 9869-1 average method ({sensor}, {face} face)\n"
-            f"{res.verdict.statement}",
-            fontsize=9,
-        )
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
+        _draw(ax, hours, res, sensor, face, title)
         fig.tight_layout()
         fig.savefig(path, dpi=120)
     finally:
         plt.close(fig)
+
+
+def _draw(ax, hours: np.ndarray, res, sensor: str, face: str, title: str) -> None:
+    """The running estimate of R with its final value +- 5 % and the mark 24 h before the end."""
+    r_end = res.r_value
+    ax.axhspan(0.95 * r_end, 1.05 * r_end, color="tab:green", alpha=0.2, label=f"final R = {r_end:.2f} m2K/W ± 5 %")
+    ax.plot(hours, res.r_running, color="tab:blue", lw=1.2, label="running estimate")
+    if res.duration_h > 24:
+        ax.axvline(res.duration_h - 24, color="0.5", ls=":", lw=1, label="24 h before the end")
+    ax.set_xlabel("elapsed time [h]")
+    ax.set_ylabel("R (surface to surface) [m2K/W]")
+    # the first day can be wild (sum of q near 0): scale the axis on the rest of the record
+    late = res.r_running[hours >= min(24.0, 0.25 * res.duration_h)]
+    finite = late[np.isfinite(late)]
+    if finite.size:
+        lo, hi = float(finite.min()), float(finite.max())
+        lo, hi = min(lo, 0.9 * r_end), max(hi, 1.1 * r_end)
+        ax.set_ylim(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
+    ax.set_title(
+        f"{title + ': ' if title else ''}ISO 9869-1 average method ({sensor}, {face} face)\n{res.verdict.statement}",
+        fontsize=9,
+    )
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
