@@ -256,3 +256,89 @@ def test_the_figure_shows_the_running_estimate_the_band_and_the_last_day(study, 
     lo, hi = min(late.min(), 0.9 * rv), max(late.max(), 1.1 * rv)
     assert ax.get_ylim() == (pytest.approx(lo - 0.05 * (hi - lo)), pytest.approx(hi + 0.05 * (hi - lo)))
     assert ax.get_title().startswith("ISO 9869-1 average method (qi, interior face)\n")
+
+
+def test_errors_name_the_study_file(study, meas):
+    no_flux = dataclasses.replace(study, sensors=tuple(s for s in study.sensors if s.quantity != "heat_flux"))
+    ext_air = dataclasses.replace(study, exterior=dataclasses.replace(study.exterior, type="air_temperature"))
+    two_qe = dataclasses.replace(
+        study, sensors=(*no_flux.sensors, study.sensor("qe"), dataclasses.replace(study.sensor("qe"), name="qe2"))
+    )
+    cases = [
+        (no_flux, {}, 'no heat_flux sensor at the interior face; add a [[sensors]] entry with quantity = "heat_flux" '
+         'and face = "interior"'),
+        (no_flux, {"sensor": "qi"}, "--sensor: 'qi' is not a heat_flux sensor at the interior face; "
+         "the study has none there"),
+        (two_qe, {}, "no heat_flux sensor at the interior face; heat_flux sensors in the study: qe (exterior), "
+         "qe2 (exterior) (use --face)"),
+        (two_qe, {"face": "exterior"}, "sensors: 2 heat_flux sensors at the exterior face (qe, qe2); "
+         "choose one with --sensor"),
+        (ext_air, {}, "but boundary.exterior.type is 'air_temperature' (not \"surface_temperature\")"),
+    ]  # fmt: skip
+    for s, kw, text in cases:
+        with pytest.raises(StudyError) as exc:
+            iso9869_for_study(s, measurements=meas, **kw)
+        assert text in str(exc.value)
+        assert exc.value.source == str(study.path)
+
+
+def test_gap_messages_name_the_longest_gap_and_the_window_end(study, meas):
+    f = meas.frame.copy()
+    i0 = f.index.get_loc(pd.Timestamp("2025-06-01 12:00"))
+    col = f.columns.get_loc("qi")
+    f.iloc[i0 : i0 + 2, col] = np.nan  # short
+    f.iloc[i0 + 100 : i0 + 130, col] = np.nan  # the longest: 30 readings
+    with pytest.raises(DataError, match=rf"column 'qi' is missing 30 reading\(s\) from {f.index[i0 + 100]} \(longer"):
+        iso9869_for_study(study, measurements=_with_frame(meas, f))
+    g = meas.frame.copy()
+    last = g.index.get_loc(pd.Timestamp(study.period.end)) - 1  # the last reading of the half-open window
+    g.iloc[last, g.columns.get_loc("interior")] = np.nan
+    with pytest.raises(DataError, match=r"column 'interior' is missing 1 reading\(s\) .*\(at an end of the window\)"):
+        iso9869_for_study(study, measurements=_with_frame(meas, g))
+    g = meas.frame.copy()
+    g.iloc[last - 1, g.columns.get_loc("interior")] = np.nan  # the last but one: bridged
+    assert iso9869_for_study(study, measurements=_with_frame(meas, g)).n_filled == 1
+    # two readings are enough
+    r = iso9869_for_study(study, measurements=_with_frame(meas, meas.frame.iloc[:3]), whole_record=True)
+    assert len(r.times_s) == 2 and r.times_s.dtype == np.float64
+
+
+def test_u_value_only_for_a_positive_resistance(study, meas):
+    f = meas.frame.copy()
+    f["qi"] = -f["qi"]  # heat flowing the other way than the temperatures say: R < 0
+    r = iso9869_for_study(study, measurements=_with_frame(meas, f))
+    assert r.res.r_value < 0 and math.isnan(r.u) and r.to_json()["u_value_W_m2K"] != r.to_json()["u_value_W_m2K"]
+    f["qi"] = meas.frame["qi"] * 20.0  # 20 times the flux: R about 0.46 m2K/W, below 1
+    r = iso9869_for_study(study, measurements=_with_frame(meas, f))
+    assert 0 < r.res.r_value < 1 and r.u == pytest.approx(1 / (0.17 + r.res.r_value), rel=1e-14)
+
+
+def test_criteria_table_of_a_required_criterion_not_evaluated(study, meas):
+    r = iso9869_for_study(study, measurements=meas)
+    sel = r.selection
+    heavy_no_wall = iso9869.average_method(
+        r.times_s, sel["qi"].to_numpy(), sel["interior"].to_numpy(), sel["exterior"].to_numpy(), heavy=True
+    )
+    t = dataclasses.replace(r, res=heavy_no_wall).criteria_table()
+    assert t.loc["storage", "result"] == "not evaluated" and t.loc["storage", "limit"] == "5.0 %"
+    v = {c.name: c.value for c in heavy_no_wall.verdict.criteria}
+    assert t.loc["first_last_two_thirds", "value"] == f"{100 * v['first_last_two_thirds']:.1f} %"
+
+
+def test_written_files_format_and_the_figure_arguments(study, meas, tmp_path, monkeypatch):
+    from wallcal.standards import insitu
+
+    r = iso9869_for_study(study, measurements=meas)
+    seen = {}
+    monkeypatch.setattr(insitu, "_figure", lambda *a: seen.setdefault("args", a))
+    r.write_into(tmp_path)
+    path, hours, res, sensor, face, title = seen["args"]
+    assert path == tmp_path / "iso9869.png" and (sensor, face, title) == ("qi", "interior", study.name)
+    np.testing.assert_array_equal(hours, r.times_s / 3600.0)
+    assert res is r.res
+    text = (tmp_path / "iso9869.json").read_text()
+    assert text.startswith('{\n  "study": ') and text == json.dumps(r.to_json(), indent=2)
+    rows = (tmp_path / "iso9869.csv").read_text().splitlines()
+    first = rows[1].split(",")
+    assert first[0] == "2025-05-30T00:00:00" and first[1] == "0"
+    assert first[2] == f"{r.selection['qi'].iloc[0]:.6g}" and first[5] == f"{r.res.r_running[0]:.6g}"

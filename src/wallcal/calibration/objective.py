@@ -85,6 +85,7 @@ class Evaluator:
     """
 
     def __init__(self, prepared: Prepared, space: ParameterSpace):
+        self.prepared = prepared
         self.space = space
         study = prepared.study
         if not prepared.engine.capabilities.batches:
