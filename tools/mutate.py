@@ -131,7 +131,7 @@ def recheck(module: str) -> None:
         cmd = ["nice", "-n", "15", sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
         try:
             code = subprocess.run(
-                cmd, cwd=d / "mutants", env={**env, "MUTANT_UNDER_TEST": key}, capture_output=True, timeout=240
+                cmd, cwd=d / "mutants", env={**env, "MUTANT_UNDER_TEST": key}, capture_output=True, timeout=60
             ).returncode
         except subprocess.TimeoutExpired:
             code = 24
