@@ -235,25 +235,13 @@ def _householder(a, beta):
 
 
 @njit(cache=True)
-def _apply_qt(a, beta, x):
-    """x <- Q^T x (node-like coordinates to those of the tridiagonal T), Q from :func:`_householder`."""
+def _apply_q(a, beta, x, transposed):
+    """x <- Q x, or Q^T x (node-like coordinates to those of the tridiagonal T) when ``transposed``; Q from
+    :func:`_householder` (each reflection H_k = I - beta_k v_k v_k^T is symmetric: Q^T applies them in
+    the opposite order)."""
     m = a.shape[0]
-    for k in range(m - 2):
-        if beta[k] == 0.0:
-            continue
-        s = 0.0
-        for i in range(k + 1, m):
-            s += a[k, i] * x[i]
-        s *= beta[k]
-        for i in range(k + 1, m):
-            x[i] -= s * a[k, i]
-
-
-@njit(cache=True)
-def _apply_q(a, beta, x):
-    """x <- Q x."""
-    m = a.shape[0]
-    for k in range(m - 3, -1, -1):
+    for step in range(m - 2):
+        k = step if transposed else m - 3 - step
         if beta[k] == 0.0:
             continue
         s = 0.0
@@ -803,7 +791,7 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
                 for i in range(m):
                     x[i] = zt[i, c]
                 _lower_solve(ld, lo, x)
-                _apply_qt(a, beta, x)
+                _apply_q(a, beta, x, True)
                 for i in range(m):
                     zt[i, c] = x[i]
         nrot, rot_i, rot_cs = tridiag_ql(d, ee, zt, rot_i, rot_cs)
@@ -849,7 +837,7 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
                 else:
                     z[i] = ld[i] * t0[j0 + i] + (lo[i] * t0[j0 + i + 1] if i + 1 < m else 0.0)
             if not uniform:
-                _apply_qt(a, beta, z)
+                _apply_q(a, beta, z, True)
             apply_wt(nrot, rot_i, rot_cs, z)
         # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
         # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
@@ -889,7 +877,7 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
         # final temperatures T = V z (uniform: Cap^-1/2 W z; else L^-T Q W z)
         apply_w(nrot, rot_i, rot_cs, z)
         if not uniform:
-            _apply_q(a, beta, z)
+            _apply_q(a, beta, z, False)
             _lower_t_solve(ld, lo, z)
         for i in range(n_nodes):
             tend[i] = 0.0
