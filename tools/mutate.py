@@ -62,8 +62,10 @@ def setup_cfg(module: str, tests: list[str]) -> str:
     lines = ["[mutmut]", "source_paths = src", f"only_mutate = {module}", "pytest_add_cli_args_test_selection ="]
     lines += [f"    {t}" for t in tests]
     lines += ["pytest_add_cli_args =", "    -q", "    -x", "    -p", "    no:cacheprovider"]
-    # generous timeouts: the host is shared and mutmut runs niced (a load spike must not read as a kill)
-    lines += ["timeout_multiplier = 20", "timeout_constant = 30"]
+    # mutmut limits each mutant's CPU time (not wall time, so a load spike on the shared host does not count) to
+    # 2 x multiplier x (the tests' estimated time + constant): about 2 min for these subsets, so that a mutant
+    # that loops for ever (two of iso13786) is stopped and counted as detected
+    lines += ["timeout_multiplier = 4", "timeout_constant = 15"]
     return "\n".join(lines) + "\n"
 
 
