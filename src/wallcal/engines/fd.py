@@ -312,19 +312,14 @@ class PreparedFD:
     # ------------------------------------------------------------------ fast path
     def _output_plan(self, input_thetas: tuple[float, float] | None = None) -> modal.ModalPlan:
         """The modal plan for these input thetas (:func:`wallcal.engines.modal.input_thetas`; default: the
-        scheme's theta on both): that of theta0 is kept; others (a candidate whose face terms are stiff)
-        are kept while few."""
-        if input_thetas is None:
-            input_thetas = (self.theta, self.theta)
-        plans = self.__dict__.setdefault("_plans", {})
-        plan = plans.get(input_thetas)
-        if plan is None:
-            if len(plans) >= 16:
-                del plans[next(k for k in plans if k != (self.theta, self.theta))]
-            plan = plans[input_thetas] = modal.modal_plan(
-                self.out_step, self.out_w, input_thetas, self.ue, self.ui, self.dt
-            )
-        return plan
+        scheme's theta on both, kept on the prepared engine). A plan for other thetas (a candidate whose
+        face terms are stiff) is formed for the call and not kept: it is as large as the record."""
+        default = (self.theta, self.theta)
+        if input_thetas is not None and input_thetas != default:
+            return modal.modal_plan(self.out_step, self.out_w, input_thetas, self.ue, self.ui, self.dt)
+        if getattr(self, "_plan", None) is None:
+            self._plan = modal.modal_plan(self.out_step, self.out_w, default, self.ue, self.ui, self.dt)
+        return self._plan
 
     def _run_modal(self, cap, g, theta, bc_theta, pa, pb, pw, initial_state, n_forced, rows=None) -> BatchResult:
         """The modal path; candidates whose inputs enter through terms with a raised theta run with a
