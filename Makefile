@@ -7,7 +7,7 @@ comma  := ,
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
-EXTRAS ?= dev,energyplus,analysis
+EXTRAS ?= dev,energyplus,analysis,cluster
 STAMP  := $(VENV)/.installed-$(subst $(comma),-,$(EXTRAS))
 
 .PHONY: demo test install lint bench mutate clean

@@ -1,0 +1,121 @@
+"""The executor (wallcal.cluster) on a dask LocalCluster: order, cache and resume, retries after a worker dies,
+errors that are not retried, an unreachable scheduler."""
+
+from __future__ import annotations
+
+import time
+
+import distributed
+import pytest
+
+from cluster_tasks import die_once, refuse, square_logged, worker_pid
+from wallcal.cluster import ClusterError, Executor, current_executor, executor_from, safe_key, task_key
+from wallcal.errors import DataError
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """One LocalCluster of 2 worker processes (with nannies, which restart a killed worker) for the module."""
+    import logging
+
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR
+    ) as lc:
+        yield lc.scheduler_address
+
+
+def runs(log_dir, x):
+    p = log_dir / f"{x}.runs"
+    return len(p.read_text().split()) if p.exists() else 0
+
+
+def test_results_in_task_order_on_both_workers(cluster, tmp_path):
+    with Executor(cluster, progress=False) as ex:
+        assert current_executor() is ex
+        out = ex.map(square_logged, [(x, str(tmp_path)) for x in range(12)])
+        pids = set(ex.map(worker_pid, range(8)))
+    assert current_executor() is None
+    assert out == [x * x for x in range(12)]
+    assert len(pids) == 2  # the tasks were spread over the two worker processes
+    assert all(runs(tmp_path, x) == 1 for x in range(12))
+
+
+def test_cache_stores_each_result_and_resume_skips_it(cluster, tmp_path):
+    log, cache = tmp_path / "log", tmp_path / "cache"
+    log.mkdir()
+    tasks = [(x, str(log)) for x in range(6)]
+    with Executor(cluster, cache_dir=cache, progress=False) as ex:
+        assert ex.map(square_logged, tasks[:4]) == [0, 1, 4, 9]
+    assert sorted(p.name for p in cache.iterdir()) == sorted(f"{task_key(square_logged, t)}.pkl" for t in tasks[:4])
+    with Executor(cluster, cache_dir=cache, resume=True, progress=False) as ex:
+        assert ex.map(square_logged, tasks) == [x * x for x in range(6)]
+        assert ex.stats == {"submitted": 2, "cached": 4, "completed": 2}
+    assert [runs(log, x) for x in range(6)] == [1, 1, 1, 1, 1, 1]
+    # without resume the cache is written but not read: everything runs again
+    with Executor(cluster, cache_dir=cache, progress=False) as ex:
+        ex.map(square_logged, tasks)
+    assert [runs(log, x) for x in range(6)] == [2] * 6
+    # user keys name the files
+    with Executor(cluster, cache_dir=tmp_path / "k", resume=True, progress=False) as ex:
+        assert ex.map(square_logged, tasks[:2], keys=["wall a", "wall/b"]) == [0, 1]
+    names = sorted(p.name for p in (tmp_path / "k").iterdir())
+    assert names == sorted([f"{safe_key('wall a')}.pkl", f"{safe_key('wall/b')}.pkl"])
+    assert safe_key("wall a") != safe_key("wall_a")
+
+
+def test_a_worker_killed_mid_task_is_retried_and_every_result_returns(cluster, tmp_path):
+    marker = tmp_path / "killed"
+    with Executor(cluster, progress=False) as ex:
+        out = ex.map(die_once, [(x, 3, str(marker)) for x in range(8)])
+    assert marker.exists()  # task 3 did kill its worker once
+    assert out == [x * x for x in range(8)]
+
+
+def test_a_wallcal_error_is_raised_as_is_and_not_retried(cluster, tmp_path):
+    with Executor(cluster, progress=False) as ex, pytest.raises(DataError, match="task 3: bad input"):
+        ex.map(refuse, [(x, str(tmp_path)) for x in range(5)], retries=3)
+    assert runs(tmp_path, 3) == 1
+
+
+def test_progress_counts_on_stderr(cluster, tmp_path, capsys):
+    with Executor(cluster, label="EnergyPlus runs") as ex:
+        ex.map(square_logged, [(x, str(tmp_path)) for x in range(3)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith("wallcal: EnergyPlus runs [") and "0/3" in err[0]
+    assert "3/3" in err[-1]
+
+
+def test_local_cluster_started_lazily_and_closed(tmp_path, monkeypatch):
+    monkeypatch.delenv("WALLCAL_SCHEDULER", raising=False)
+    with executor_from(workers=1, cache_dir=tmp_path, resume=True, progress=False) as ex:
+        assert ex.address is None and ex._client is None  # nothing started yet
+        assert ex.map(square_logged, []) == []
+        assert ex._client is None
+        assert ex.map(square_logged, [(2, str(tmp_path))]) == [4]
+        cluster = ex._cluster
+        assert len(cluster.workers) == 1
+    assert ex._client is None and cluster.status.name == "closed"
+
+
+def test_environment_variable_names_the_scheduler(monkeypatch):
+    monkeypatch.setenv("WALLCAL_SCHEDULER", "tcp://10.1.2.3:8786")
+    assert executor_from().address == "tcp://10.1.2.3:8786"
+    assert executor_from("tcp://h:1").address == "tcp://h:1"
+    assert executor_from("local").address is None
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_unreachable_scheduler_is_a_clear_error_within_15_s():
+    address = f"tcp://127.0.0.1:{free_port()}"
+    t = time.perf_counter()
+    with pytest.raises(ClusterError, match=f"cannot reach the dask scheduler at {address}"):
+        with Executor(address):
+            pass
+    assert time.perf_counter() - t < 15
