@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "wallcal.commands.energyplus",
     "wallcal.commands.analysis",
     "wallcal.commands.retrofit",
+    "wallcal.commands.building",
 )
 
 

@@ -338,3 +338,80 @@ def _nomass(name: str, resistance: float, what: str) -> str:
 def _safe_name(name: str) -> str:
     out = "".join(c if (c.isalnum() or c in "_-.") else "_" for c in str(name))
     return out[:60] or "WALLCAL"
+
+
+def epjson_schema() -> dict:
+    """EnergyPlus' epJSON schema (``Energy+.schema.epJSON`` of the ``energyplus`` extra), read once."""
+    global _SCHEMA
+    if _SCHEMA is None:
+        import json
+
+        from .engines.energyplus.runner import energyplus_binary
+
+        path = energyplus_binary().parent / "Energy+.schema.epJSON"
+        _SCHEMA = json.loads(path.read_text(encoding="utf-8"))
+    return _SCHEMA
+
+
+_SCHEMA: dict | None = None
+
+
+def idf_to_epjson(text: str) -> dict:
+    """IDF text -> epJSON objects ``{object type: {name: {field: value}}}``.
+
+    Meant for the objects wallcal writes (:func:`wall_to_idf_objects`): fields are mapped by the
+    schema's ``legacy_idd`` field lists (extensible groups included); numeric fields become numbers
+    unless they hold a keyword (``Autosize``). A user's whole model is converted by EnergyPlus itself
+    (:func:`wallcal.building.model.load_model`).
+
+    Raises
+    ------
+    EngineError
+        An object type the schema does not know.
+    """
+    props = epjson_schema()["properties"]
+    by_lower = {k.lower(): k for k in props}
+    out: dict[str, dict] = {}
+    body = "\n".join(line.split("!", 1)[0] for line in text.splitlines())
+    for chunk in body.split(";"):
+        fields = [f.strip() for f in chunk.split(",")]
+        if not fields or not fields[0]:
+            continue
+        kind = by_lower.get(fields[0].lower())
+        if kind is None:
+            raise EngineError(f"IDF object type {fields[0]!r} is not in the EnergyPlus 25.2 schema")
+        legacy = props[kind]["legacy_idd"]
+        info = legacy.get("field_info", {})
+        names = legacy.get("fields", [])
+        values = fields[1:]
+        obj: dict = {}
+        name = None
+        for key, val in zip(names, values, strict=False):
+            if val == "":
+                continue
+            if key == "name":
+                name = val
+                continue
+            obj[key] = _epjson_value(val, info.get(key, {}).get("field_type"))
+        ext = legacy.get("extensibles")
+        if ext and len(values) > len(names):
+            rest = values[len(names) :]
+            groups = []
+            for j in range(0, len(rest), len(ext)):
+                g = {
+                    k: _epjson_value(v, info.get(k, {}).get("field_type")) for k, v in zip(ext, rest[j:], strict=False)
+                }
+                groups.append({k: v for k, v in g.items() if v != ""})
+            obj[legacy["extension"]] = groups
+        bucket = out.setdefault(kind, {})
+        bucket[name if name is not None else f"{kind} {len(bucket) + 1}"] = obj
+    return out
+
+
+def _epjson_value(val: str, field_type: str | None):
+    if field_type == "n":
+        try:
+            return float(val)
+        except ValueError:
+            return val
+    return val

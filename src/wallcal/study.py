@@ -169,6 +169,7 @@ class Study:
     description: str = ""
     calibration: ParameterSpace | None = None
     retrofit: Any = None  # wallcal.retrofitting.config.RetrofitSpec, from the [retrofit] table
+    building: Any = None  # wallcal.building.config.BuildingSpec, from the [building] table
     path: Path | None = None
     raw: dict = field(default_factory=dict, compare=False, repr=False)
     sha256: str = ""
@@ -186,7 +187,18 @@ class Study:
 
 
 # ============================================================================ the study
-TOP_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation", "calibration", "retrofit")
+TOP_KEYS = (
+    "study",
+    "wall",
+    "data",
+    "boundary",
+    "sensors",
+    "period",
+    "simulation",
+    "calibration",
+    "retrofit",
+    "building",
+)
 STUDY_KEYS = ("name", "description")
 DATA_KEYS = (
     "file",
@@ -501,6 +513,11 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         from .retrofitting.config import parse_retrofit
 
         retrofit = parse_retrofit(top.raw("retrofit"), problems, base_dir, wall)
+    building = None
+    if top.has("building"):
+        from .building.config import parse_building
+
+        building = parse_building(top.raw("building"), problems, base_dir)
 
     if problems:
         raise StudyError(problems, source=source)
@@ -518,6 +535,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         simulation=sim,
         calibration=calib,
         retrofit=retrofit,
+        building=building,
         raw=raw,
     )
     return study
