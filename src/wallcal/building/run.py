@@ -63,7 +63,7 @@ def run_building(task: dict) -> dict:
         if proc.returncode != 0 or severe or not (tmp / "eplusout.csv").exists():
             lines = severe or (proc.stderr or proc.stdout or "").strip().splitlines()[-5:]
             raise EngineError(f"{label}: EnergyPlus failed (exit code {proc.returncode}): " + " | ".join(lines[:6]))
-        df = pd.read_csv(tmp / "eplusout.csv")
+        df = read_eplus_csv(tmp / "eplusout.csv")
         area = _floor_area(tmp / "eplusout.eio", task["zones"])
         out = {
             "floor_area_m2": area,
@@ -92,6 +92,25 @@ def run_building(task: dict) -> dict:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def read_eplus_csv(path: Path) -> pd.DataFrame:
+    """EnergyPlus' CSV output as a frame with a ``Date/Time`` column and one column per variable.
+
+    EnergyPlus writes its rows with an empty field after the time when a run reports no timestep-level
+    variable (more fields than header names); that field is dropped.
+    """
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        header = [h.strip() for h in fh.readline().rstrip("\n").split(",")]
+    raw = pd.read_csv(path, header=None, skiprows=1, dtype=str, keep_default_na=False)
+    extra = raw.shape[1] - len(header)
+    if extra > 0:
+        raw = raw.drop(columns=raw.columns[1 : 1 + extra])
+    raw.columns = header
+    df = raw.copy()
+    for c in header[1:]:
+        df[c] = pd.to_numeric(raw[c].str.strip().replace("", np.nan), errors="coerce")
+    return df
+
+
 def _floor_area(eio: Path, zones: list[str]) -> float:
     """Sum of floor area x multiplier of ``zones`` from the ``Zone Information`` lines of the .eio file [m2]."""
     header = None
@@ -108,16 +127,6 @@ def _floor_area(eio: Path, zones: list[str]) -> float:
     if area <= 0:
         raise EngineError(f"{eio}: no floor area reported for the conditioned zone(s) {', '.join(zones)}")
     return area
-
-
-def run_all(fn, tasks: list, progress=None) -> list:
-    """Run ``fn`` over ``tasks`` in order (the stand-in for the dask executor until it lands)."""
-    out = []
-    for k, t in enumerate(tasks, 1):
-        out.append(fn(t))
-        if progress:
-            progress(k, len(tasks))
-    return out
 
 
 # ============================================================================ the measured zone air

@@ -10,7 +10,6 @@ written atomically (:func:`wallcal.outputs.output_dir`).
 from __future__ import annotations
 
 import json
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +20,7 @@ import pandas as pd
 from ..errors import StudyError
 from .config import BuildingSpec
 from .model import check_model, load_model, needs_condfd, reference_building, select_surfaces, with_wall
-from .run import compare_zone, read_zone_measurements, run_all, run_building
+from .run import compare_zone, read_zone_measurements, run_building
 from .sources import WallEntry
 
 #: ``building.csv``: the contract columns, one row per wall.
@@ -249,7 +248,9 @@ def building(
     measured: str | Path | None = None,
     zone_column: str | None = None,
     zone: str | None = None,
-    mapper=None,
+    scheduler: str | None = None,
+    cache_dir: str | Path | None = None,
+    resume: bool = False,
     progress: bool = False,
     timeout: float = 3600.0,
 ) -> BuildingResult:
@@ -272,10 +273,15 @@ def building(
         Measured zone air temperatures (CSV, first column the time) and the column to compare with.
     zone : str, optional
         The zone whose air is compared (default: the only conditioned zone).
-    mapper : callable, optional
-        ``mapper(fn, tasks) -> results`` in task order; default one run after the other.
+    scheduler : str, optional
+        dask scheduler address (``--scheduler``); default ``WALLCAL_SCHEDULER``, else a local cluster
+        (:mod:`wallcal.cluster`).
+    cache_dir : path, optional
+        Where finished runs are stored as they complete (by the hash of their inputs).
+    resume : bool
+        Reuse the runs stored in ``cache_dir`` (``--resume``).
     progress : bool
-        A line per finished run on stderr.
+        A progress line on stderr.
     timeout : float
         Wall-clock limit of one EnergyPlus run [s].
 
@@ -357,12 +363,12 @@ def building(
                     "timeout": timeout,
                 }
             )
+    from ..cluster import executor_from
 
-    def say(k, n):
-        if progress:
-            print(f"\r  EnergyPlus runs: {k}/{n}", end="" if k < n else "\n", file=sys.stderr, flush=True)
-
-    results = (mapper or (lambda fn, ts: run_all(fn, ts, progress=say)))(run_building, tasks)
+    with executor_from(
+        scheduler, cache_dir=cache_dir, resume=resume, progress=progress, label="EnergyPlus runs (building)"
+    ) as ex:
+        results = ex.map(run_building, tasks)
     figures = results[: len(walls)]
     res = BuildingResult(
         walls=list(walls),

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 from ..formatting import table
@@ -42,6 +43,16 @@ def register(sub) -> None:
         "--zone", metavar="ZONE", help="the zone compared with --measured (default: the only conditioned one)"
     )
     p.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="dask scheduler for the EnergyPlus runs (default: WALLCAL_SCHEDULER, else a local cluster)",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="reuse the runs an interrupted command finished (kept in .OUT.building-cache next to --out)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run)
 
@@ -72,6 +83,8 @@ def run(args) -> int:
     if args.measured and not args.zone_column:
         raise StudyError(["--measured needs --zone-column NAME"])
     walls = collect_walls(study, args.walls, args.from_dirs, spec.samples)
+    out = Path(args.out).resolve()
+    cache = out.parent / f".{out.name}.building-cache"
     surfaces = [s.strip() for s in args.surfaces.split(",") if s.strip()] if args.surfaces else None
     res = building(
         study,
@@ -83,11 +96,15 @@ def run(args) -> int:
         measured=args.measured,
         zone_column=args.zone_column,
         zone=args.zone,
+        scheduler=args.scheduler,
+        cache_dir=cache,
+        resume=args.resume,
         progress=not args.quiet,
     )
     manifest = manifest_of(study, "building")
     manifest["weather"] = str(res.weather)
     res.write(args.out, manifest=manifest)
+    shutil.rmtree(cache, ignore_errors=True)  # the runs are in the output now
     print(f"{study.name or Path(args.study).name}: {len(walls)} wall(s) in the building, {res.seconds:.1f} s")
     print()
     print(table(res.table().set_index("wall"), "Heating and cooling (kWh, kWh/m2 of conditioned floor; peaks W)"))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -138,6 +139,9 @@ def run_crosscheck(args) -> int:
     if args.out:
         with output_dir(args.out, manifest=manifest_of(study, "crosscheck")) as tmp:
             df.to_csv(Path(tmp) / "crosscheck.csv", index=False, float_format="%.6g")
+            (Path(tmp) / "walls").mkdir()  # the walls checked, for 'wallcal building --from'
+            for wpath in args.walls:
+                shutil.copyfile(wpath, Path(tmp) / "walls" / f"{Path(wpath).stem}.toml")
         print(f"\nwrote {args.out}/crosscheck.csv")
     return 0
 

@@ -431,6 +431,7 @@ class RetrofitResult:
     def write_into(self, d: Path) -> list[str]:
         """Write ``variants.csv``, per-variant ``hourly_<k>.csv`` / ``glaser_<k>.csv``, ``spread.csv`` (with
         samples), ``retrofit.json`` and the figures into ``d``; returns the file names."""
+        from ..wallfile import dump_wall
         from . import plots
 
         d = Path(d)
@@ -441,6 +442,8 @@ class RetrofitResult:
             h.index = h.index.strftime("%Y-%m-%dT%H:%M")
             h.to_csv(d / f"hourly_{k}.csv", float_format="%.5g")
             files.append(f"hourly_{k}.csv")
+            (d / f"variant_{k}.toml").write_text(dump_wall(v.wall, f"retrofit variant {v.spec.name!r}"))
+            files.append(f"variant_{k}.toml")
             if v.glaser is not None:
                 v.glaser.table.to_csv(d / f"glaser_{k}.csv", float_format="%.6g")
                 files.append(f"glaser_{k}.csv")

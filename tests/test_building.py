@@ -1,0 +1,310 @@
+"""``wallcal building``: the walls in the reference building through EnergyPlus (on the dask executor), the
+contract columns, posterior spread, the whole-envelope check, ``--from`` sources and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import EXAMPLE
+from wallcal import dump_wall, load_study
+from wallcal.building import COLUMNS, collect_walls, reference_building
+from wallcal.building.model import select_surfaces, with_wall
+from wallcal.building.run import run_building
+from wallcal.cli import main
+from wallcal.errors import StudyError
+from wallcal.retrofitting.weather import resolve_weather
+
+CHICAGO = "USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw"
+
+
+def _study(tmp_path, building: str = "") -> str:
+    """The bundled example with a [building] table (and without its retrofit table's weather changed)."""
+    text = (
+        EXAMPLE.read_text()
+        .replace('file = "measured.csv"', f'file = "{EXAMPLE.parent / "measured.csv"}"')
+        .replace('reference_wall = "true_wall.toml"', f'reference_wall = "{EXAMPLE.parent / "true_wall.toml"}"')
+    )
+    path = tmp_path / "study.toml"
+    path.write_text(text + "\n" + building)
+    return str(path)
+
+
+def _assert_clean_error(code, cap, out, *fragments):
+    assert code == 2, cap.err
+    err = cap.err.strip()
+    assert err.startswith("wallcal: error:") and "\n" not in err, err
+    for f in fragments:
+        assert f in err, err
+    assert not out.exists()
+    assert not list(out.parent.glob(f".{out.name}*")), "a temporary, lock or cache file was left behind"
+
+
+@pytest.fixture(scope="module")
+def big_run(tmp_path_factory):
+    """One command over a week of January: the study wall, an identical copy, a wall with layer 3's
+    conductivity doubled, four posterior draws, and the free-floating check against a synthetic record
+    made by EnergyPlus from the study wall itself."""
+    tmp = tmp_path_factory.mktemp("building")
+    study_file = _study(tmp, '[building]\nweather = "' + CHICAGO + '"\nstart = "01-08"\nend = "01-14"\n')
+    study = load_study(study_file)
+    (tmp / "base.toml").write_text(dump_wall(study.wall))
+    (tmp / "same.toml").write_text(dump_wall(study.wall))
+    (tmp / "kplus.toml").write_text(dump_wall(study.wall.replace_layer("3", conductivity=0.08)))
+    # a posterior output: 4 draws of conductivity[3] between 0.03 and 0.05 W/(mK)
+    post = tmp / "post"
+    post.mkdir()
+    chain = np.linspace(0.0, 1.0, 8).reshape(4, 2, 1)
+    np.savez(post / "chain.npz", chain=chain, names=np.array(["conductivity[3]"]), lower=[0.03], upper=[0.05])
+    (post / "posterior.json").write_text(json.dumps({"burn": 0, "thin": 1}))
+    # the measured zone air: the study wall's free-floating run over 10-14 January, hourly
+    model = reference_building()
+    mdl = with_wall(
+        model,
+        study.wall,
+        select_surfaces(model, None),
+        period=((1, 10), (1, 14)),
+        steps_per_hour=6,
+        free_floating=True,
+        zone_temperatures=True,
+    )
+    sim = run_building(
+        {
+            "model": mdl,
+            "weather": str(resolve_weather(CHICAGO)),
+            "steps_per_hour": 6,
+            "zones": ["ZONE"],
+            "temperature_zone": "ZONE",
+        }
+    )
+    times = [
+        pd.Timestamp(f"2021-{t.split()[0].replace('/', '-')}") + pd.Timedelta(hours=int(t.split()[1][:2]))
+        for t in sim["zone_temperature"]["time"]
+    ]
+    pd.DataFrame({"time": times, "T_zone": sim["zone_temperature"]["value"]}).to_csv(tmp / "zone.csv", index=False)
+    out = tmp / "out"
+    code = main(
+        [
+            "building",
+            study_file,
+            "--walls",
+            str(tmp / "base.toml"),
+            str(tmp / "same.toml"),
+            str(tmp / "kplus.toml"),
+            "--from",
+            str(post),
+            "--samples",
+            "4",
+            "--measured",
+            str(tmp / "zone.csv"),
+            "--zone-column",
+            "T_zone",
+            "--out",
+            str(out),
+            "--quiet",
+            "--scheduler",
+            "local",
+        ]
+    )
+    assert code == 0
+    return out
+
+
+@pytest.mark.slow
+def test_contract_columns_and_per_floor_area(big_run):
+    tab = pd.read_csv(big_run / "building.csv")
+    assert tuple(tab.columns) == COLUMNS
+    assert list(tab["wall"]) == ["base", "same", "kplus", "draw_001", "draw_002", "draw_003", "draw_004"]
+    info = json.loads((big_run / "building.json").read_text())
+    assert info["conditioned_floor_area_m2"] == pytest.approx(80.0)  # 10 m x 8 m
+    np.testing.assert_allclose(tab["heating_kWh_m2"], tab["heating_kWh"] / 80.0, rtol=1e-5)
+    np.testing.assert_allclose(tab["cooling_kWh_m2"], tab["cooling_kWh"] / 80.0, rtol=1e-5)
+    np.testing.assert_allclose(
+        tab["difference_vs_first_heating_kWh"], tab["heating_kWh"] - tab["heating_kWh"][0], atol=1e-3
+    )
+    # a January week in Chicago: heating, no cooling; peaks of a 80 m2 well-insulated box (kW scale)
+    assert (tab["heating_kWh"] > 50).all() and (tab["cooling_kWh"] == 0).all()
+    assert (tab["peak_heating_W"] > 500).all() and (tab["peak_heating_W"] < 10000).all()
+
+
+@pytest.mark.slow
+def test_bigger_conductivity_gives_more_heating_and_identical_walls_identical_rows(big_run):
+    tab = pd.read_csv(big_run / "building.csv").set_index("wall")
+    assert tab.loc["kplus", "heating_kWh"] > tab.loc["base", "heating_kWh"] + 1.0
+    assert tab.loc["kplus", "peak_heating_W"] > tab.loc["base", "peak_heating_W"]
+    cols = [c for c in COLUMNS[1:] if c != "difference_vs_first_heating_kWh"]
+    assert tab.loc["same", cols].tolist() == tab.loc["base", cols].tolist()
+    assert tab.loc["same", "difference_vs_first_heating_kWh"] == 0.0
+    # the draws' conductivity[3] rises from 0.03 to 0.05 W/(mK): heating rises with it
+    draws = tab.loc[[f"draw_00{k}" for k in range(1, 5)], "heating_kWh"].to_numpy()
+    assert np.all(np.diff(draws) > 0)
+
+
+@pytest.mark.slow
+def test_posterior_spread_and_the_plain_sentence(big_run):
+    sp = pd.read_csv(big_run / "spread.csv", index_col="figure")
+    tab = pd.read_csv(big_run / "building.csv").set_index("wall")
+    draws = tab.loc[[w for w in tab.index if w.startswith("draw_")], "heating_kWh"]
+    assert sp.loc["heating_kWh", "p05"] == pytest.approx(np.percentile(draws, 5), rel=1e-5)
+    assert sp.loc["heating_kWh", "p95"] == pytest.approx(np.percentile(draws, 95), rel=1e-5)
+    notes = json.loads((big_run / "building.json").read_text())["notes"]
+    width = sp.loc["heating_kWh", "p95"] - sp.loc["heating_kWh", "p05"]
+    others = tab.loc[["base", "same", "kplus"], "heating_kWh"]
+    verdict = "more" if others.max() - others.min() > width else "less"
+    assert any(f"{verdict} than the posterior spread" in n for n in notes), notes
+
+
+@pytest.mark.slow
+def test_whole_envelope_check_finds_the_wall_that_made_the_record(big_run):
+    chk = pd.read_csv(big_run / "envelope_check.csv").set_index("wall")
+    # the record is the study wall's own free-floating run over the same days; the two runs agree to about
+    # 1e-3 K (measured: RMSE 0.0012 K), far below the 0.2 K the doubled conductivity makes
+    assert chk.loc["base", "rmse_K"] < 0.01 and abs(chk.loc["base", "mbe_K"]) < 0.01
+    assert chk.loc["kplus", "rmse_K"] > 0.1  # a leakier wall: a colder free-floating zone
+    assert chk.loc["kplus", "mbe_K"] < 0
+    assert chk.loc["base", "hours"] >= 5 * 24 - 1
+    z = pd.read_csv(big_run / "zone_temperatures.csv")
+    assert {"time", "measured", "base", "kplus"} <= set(z.columns)
+
+
+def test_from_retrofit_crosscheck_and_many_calibrate_outputs(tmp_path):
+    study = load_study(EXAMPLE)
+    ret = tmp_path / "ret"
+    ret.mkdir()
+    (ret / "retrofit.json").write_text(
+        json.dumps({"variants": [{"index": 1, "name": "as built"}, {"index": 2, "name": "EPS"}]})
+    )
+    (ret / "variant_1.toml").write_text(dump_wall(study.wall))
+    (ret / "variant_2.toml").write_text(dump_wall(study.wall.replace_layer("3", conductivity=0.02)))
+    cc = tmp_path / "cc"
+    (cc / "walls").mkdir(parents=True)
+    (cc / "crosscheck.csv").write_text("wall,engine\n")
+    (cc / "walls" / "opt1.toml").write_text(dump_wall(study.wall))
+    many = tmp_path / "many"
+    for name in ("s1", "s2"):
+        (many / name).mkdir(parents=True)
+        (many / name / "calibrated_wall.toml").write_text(dump_wall(study.wall))
+    walls = collect_walls(study, (), [ret, cc, many], 5)
+    assert [(w.name, w.kind) for w in walls] == [
+        ("as built", "variant"),
+        ("EPS", "variant"),
+        ("opt1", "optimal"),
+        ("s1", "optimal"),
+        ("s2", "optimal"),
+    ]
+    assert walls[1].wall.layers[0].conductivity == 0.02
+    assert collect_walls(study)[0].kind == "study"
+    with pytest.raises(StudyError, match="not a calibrate"):
+        collect_walls(study, (), [tmp_path])
+
+
+def test_crosscheck_and_retrofit_outputs_keep_their_walls(tmp_path, capsys):
+    """crosscheck writes walls/<stem>.toml beside crosscheck.csv, which --from reads back."""
+    study = load_study(EXAMPLE)
+    (tmp_path / "w1.toml").write_text(dump_wall(study.wall))
+    out = tmp_path / "cc"
+    assert main(["crosscheck", str(EXAMPLE), str(tmp_path / "w1.toml"), "--engines", "fd-cn", "--out", str(out)]) == 0
+    walls = collect_walls(study, (), [out])
+    assert [w.name for w in walls] == ["w1"] and walls[0].wall.layers == study.wall.layers
+
+
+# ---------------------------------------------------------------------------- bad input
+def test_a_model_with_no_outdoor_wall(tmp_path, capsys):
+    model = reference_building()
+    for s in model["BuildingSurface:Detailed"].values():
+        if s["surface_type"] == "Wall":
+            s["outside_boundary_condition"] = "Adiabatic"
+    model.pop("FenestrationSurface:Detailed")
+    (tmp_path / "m.epJSON").write_text(json.dumps(model))
+    out = tmp_path / "out"
+    code = main(
+        [
+            "building",
+            _study(tmp_path),
+            "--building",
+            str(tmp_path / "m.epJSON"),
+            "--weather",
+            CHICAGO,
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    _assert_clean_error(code, capsys.readouterr(), out, "m.epJSON has no outdoor wall")
+
+
+def test_an_unknown_surface_gets_did_you_mean(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(
+        [
+            "building",
+            _study(tmp_path),
+            "--surfaces",
+            "WALL_SOUTH,WALL_NROTH",
+            "--weather",
+            CHICAGO,
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    _assert_clean_error(code, capsys.readouterr(), out, "'WALL_NROTH' is not a surface", "did you mean 'WALL_NORTH'")
+
+
+def test_a_wall_file_that_does_not_parse(tmp_path, capsys):
+    (tmp_path / "bad.toml").write_text("[wall\nlayers = \n")  # not TOML
+    out = tmp_path / "out"
+    code = main(
+        [
+            "building",
+            _study(tmp_path),
+            "--walls",
+            str(tmp_path / "bad.toml"),
+            "--weather",
+            CHICAGO,
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    _assert_clean_error(code, capsys.readouterr(), out, "bad.toml")
+
+
+def test_a_weather_name_that_does_not_exist(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["building", _study(tmp_path), "--weather", "USA_IL_Chicago.epw", "--out", str(out), "--quiet"])
+    _assert_clean_error(code, capsys.readouterr(), out, "--weather: 'USA_IL_Chicago.epw'", "shipped:")
+
+
+def test_a_measured_column_that_does_not_exist(tmp_path, capsys):
+    (tmp_path / "zone.csv").write_text("time,T_zone\n2021-01-10 01:00,20.0\n2021-01-10 02:00,20.1\n")
+    out = tmp_path / "out"
+    code = main(
+        [
+            "building",
+            _study(tmp_path),
+            "--weather",
+            CHICAGO,
+            "--measured",
+            str(tmp_path / "zone.csv"),
+            "--zone-column",
+            "T_zon",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    _assert_clean_error(code, capsys.readouterr(), out, "--zone-column 'T_zon'", "did you mean 'T_zone'")
+
+
+def test_the_building_table_is_validated_with_key_paths(tmp_path):
+    path = _study(tmp_path, '[building]\nstart = "13-01"\nend = "01-01"\nsurfacs = ["A"]\ntimesteps_per_hour = 7\n')
+    with pytest.raises(StudyError) as exc:
+        load_study(path)
+    msg = str(exc.value)
+    assert "building.start: must be a day" in msg
+    assert "building.surfacs: unknown key; did you mean 'surfaces'" in msg
+    assert "building.timesteps_per_hour: must divide 60" in msg
