@@ -193,7 +193,31 @@ def compare_engines(
     EngineError
         An engine cannot run the study.
     """
+    return compare_many(
+        [study],
+        engines,
+        node_rule=node_rule,
+        grid_constant=grid_constant,
+        time_step=time_step,
+        skip_missing=skip_missing,
+    )[0]
+
+
+def compare_many(
+    studies,
+    engines,
+    *,
+    node_rule: str | None = None,
+    grid_constant: float | None = None,
+    time_step: float | None = None,
+    skip_missing: bool = True,
+) -> list[Comparison]:
+    """:func:`compare_engines` for several studies (e.g. one study with several walls: ``wallcal crosscheck``),
+    the EnergyPlus runs of every study and engine sent at once to the executor (:mod:`wallcal.cluster`), so
+    they run in parallel. Same arguments and errors as :func:`compare_engines`; one :class:`Comparison` per study.
+    """
     from .data import load_measurements
+    from .engines import get_engine
     from .simulation import prepare, result_from_output
 
     names = [str(e).strip() for e in engines if str(e).strip()]
@@ -208,38 +232,64 @@ def compare_engines(
     if problems:
         raise StudyError(problems)
 
-    meas = load_measurements(study)
-    results, skipped, seconds = {}, {}, {}
-    preps: dict[str, object] = {}
-    for name in names:
-        scheme = _scheme(name)
-        if scheme not in preps:
-            preps[scheme] = prepare(
-                study,
-                "fd-implicit" if scheme == "implicit" else "fd-cn",
-                time_step=time_step,
-                grid_constant=grid_constant,
-                node_rule=node_rule,
-                measurements=meas,
-            )
-        prep = preps[scheme]
-        eng = _engine_for(name)
-        why = eng.unavailable()
-        if why:
-            if not skip_missing:
-                raise OptionalDependencyError(why)
-            skipped[name] = why
-            continue
-        t = time.perf_counter()
-        out = eng.run(eng.prepare(prep.inp))
-        seconds[name] = time.perf_counter() - t
-        out.info.setdefault("seconds", seconds[name])
-        res = result_from_output(prep, out, name)
-        res.info["node_rule"] = "energyplus (EnergyPlus' own)" if name.startswith("energyplus") else prep.inp.node_rule
-        results[name] = res
-    if not results:
-        raise OptionalDependencyError("no engine could run: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
+    plans = []  # per study: (study, preps, {engine name: prepared data}, skipped)
+    eplus_jobs = []  # (study index, engine name, input): every EnergyPlus run, sent at once
+    for k, study in enumerate(studies):
+        meas = load_measurements(study)
+        preps: dict[str, object] = {}
+        use, skipped = {}, {}
+        for name in names:
+            scheme = _scheme(name)
+            if scheme not in preps:
+                preps[scheme] = prepare(
+                    study,
+                    "fd-implicit" if scheme == "implicit" else "fd-cn",
+                    time_step=time_step,
+                    grid_constant=grid_constant,
+                    node_rule=node_rule,
+                    measurements=meas,
+                )
+            eng = _engine_for(name)
+            why = eng.unavailable()
+            if why:
+                if not skip_missing:
+                    raise OptionalDependencyError(why)
+                skipped[name] = why
+                continue
+            use[name] = preps[scheme]
+            if name.startswith("energyplus"):
+                eplus_jobs.append((k, name, preps[scheme].inp))
+        if not use:
+            raise OptionalDependencyError("no engine could run: " + "; ".join(f"{a}: {b}" for a, b in skipped.items()))
+        plans.append((study, preps, use, skipped))
+    eplus_out = {}
+    if eplus_jobs:
+        outs = get_engine("energyplus").run_inputs([inp for _, _, inp in eplus_jobs])
+        eplus_out = {(k, name): out for (k, name, _), out in zip(eplus_jobs, outs, strict=True)}
 
+    comparisons = []
+    for k, (study, preps, use, skipped) in enumerate(plans):
+        results, seconds = {}, {}
+        for name, prep in use.items():
+            if name.startswith("energyplus"):
+                out = eplus_out[(k, name)]
+                seconds[name] = float(out.info.get("seconds", float("nan")))
+            else:
+                eng = _engine_for(name)
+                t = time.perf_counter()
+                out = eng.run(eng.prepare(prep.inp))
+                seconds[name] = time.perf_counter() - t
+                out.info.setdefault("seconds", seconds[name])
+            res = result_from_output(prep, out, name)
+            res.info["node_rule"] = (
+                "energyplus (EnergyPlus' own)" if name.startswith("energyplus") else prep.inp.node_rule
+            )
+            results[name] = res
+        comparisons.append(_assemble(study, preps, results, skipped, seconds))
+    return comparisons
+
+
+def _assemble(study, preps, results, skipped, seconds) -> Comparison:
     units = {s.name: (s.unit if s.quantity == "temperature" else "W/m2") for s in study.sensors}
     rows = []
     for name, res in results.items():

@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..formatting import table
+from .clusteropts import add_cluster_options, executor_for
 
 
 def register(sub) -> None:
@@ -40,6 +41,7 @@ def register(sub) -> None:
     c.add_argument("walls", nargs="+", metavar="WALL.toml")
     c.add_argument("--engines", default="fd-cn", help="comma-separated engines (default fd-cn)")
     c.add_argument("--out", metavar="DIR")
+    add_cluster_options(c)
     c.set_defaults(func=run_crosscheck)
 
     v = sub.add_parser(
@@ -106,7 +108,12 @@ def run_calibrate(args) -> int:
 
 
 def run_crosscheck(args) -> int:
-    from ..comparison import compare_engines
+    with executor_for(args, args.out):
+        return crosscheck_command(args)
+
+
+def crosscheck_command(args) -> int:
+    from ..comparison import compare_many
     from ..outputs import output_dir
     from ..simulation import manifest_of
     from ..study import load_study, load_wall
@@ -119,6 +126,7 @@ def run_crosscheck(args) -> int:
         if study.calibration
         else [s.name for s in study.sensors if s.quantity == "temperature"]
     )
+    studies = []
     for wpath in args.walls:
         wall = load_wall(wpath)
         if not wall.probes:
@@ -130,7 +138,9 @@ def run_crosscheck(args) -> int:
             from ..errors import StudyError
 
             raise StudyError([f"{wpath}: the wall has no probe {', '.join(missing)} that the study's sensors need"])
-        comp = compare_engines(study.replace(wall=wall), engines)
+        studies.append(study.replace(wall=wall))
+    comps = compare_many(studies, engines)
+    for wpath, comp in zip(args.walls, comps, strict=True):
         for eng in comp.results:
             met = comp.results[eng].metrics.set_index("signal")
             rows.append({"wall": Path(wpath).stem, "engine": eng, **{f"rmse_{t}": met.loc[t, "rmse"] for t in targets}})

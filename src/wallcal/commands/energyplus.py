@@ -5,6 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .clusteropts import add_cluster_options, executor_for
+
 _PERCENT = ("rn_rmse", "cv_rmse_eff", "nmbe", "cv_rmse_g14")
 _LABELS = {
     "rmse": "RMSE",
@@ -45,6 +47,7 @@ def register(sub) -> None:
         help="nodes per layer rule of the fd engines; default: the study's",
     )
     p.add_argument("--out", metavar="DIR", help="write comparison.csv, differences.csv, comparison.png here")
+    add_cluster_options(p)
     p.set_defaults(func=run_compare)
 
     q = sub.add_parser(
@@ -130,6 +133,11 @@ def _text_table(head, rows, title=None) -> str:
 
 
 def run_compare(args) -> int:
+    with executor_for(args, args.out):
+        return compare_command(args)
+
+
+def compare_command(args) -> int:
     from ..comparison import compare_engines
     from ..outputs import output_dir
     from ..simulation import manifest_of

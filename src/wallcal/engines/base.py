@@ -397,16 +397,20 @@ class Engine:
             return self.run_wall(prepared, inp.wall if walls is None else walls)
         if isinstance(walls, WallBatch):
             walls = walls.walls(inp.wall, inp.probes)
-        outs = [self.run_wall(prepared, w) for w in walls]
-        return BatchOutput(
-            temperatures={k: np.stack([o.temperatures[k] for o in outs]) for k in inp.probes},
-            fluxes={k: np.stack([o.fluxes[k] for o in outs]) for k in outs[0].fluxes} if outs else {},
-            info={"engine": self.name, "runs": [o.info for o in outs]},
-        )
+        return stack_outputs(self.name, inp.probes, [self.run_wall(prepared, w) for w in walls])
 
     def simulate(self, inp: SimulationInput) -> EngineOutput:
         """``run(prepare(inp))``: one run of the input's wall."""
         return self.run(self.prepare(inp))
+
+
+def stack_outputs(engine: str, probes: Sequence[str], outs: Sequence[EngineOutput]) -> BatchOutput:
+    """The :class:`BatchOutput` of one :class:`EngineOutput` per wall (candidate axis first)."""
+    return BatchOutput(
+        temperatures={k: np.stack([o.temperatures[k] for o in outs]) for k in probes},
+        fluxes={k: np.stack([o.fluxes[k] for o in outs]) for k in outs[0].fluxes} if outs else {},
+        info={"engine": engine, "runs": [o.info for o in outs]},
+    )
 
 
 def is_batch(walls) -> bool:

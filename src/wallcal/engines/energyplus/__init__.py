@@ -39,6 +39,11 @@ EnergyPlus quirks handled here (numbers in ``docs/energyplus.md``):
 4. CondFD's inner iteration stops on an inside-face criterion (default
    0.002 K); it is tightened (1e-6 K).
 
+Runs: every EnergyPlus run goes through :meth:`EnergyPlusEngine.run_inputs`, which sends the runs to the
+active executor of :mod:`wallcal.cluster` (the commands open one: a local dask cluster or ``--scheduler``) as
+one task each (:func:`run_task`), or, with no executor active and no ``WALLCAL_SCHEDULER`` set (a library
+call), runs them here one after the other.
+
 Initialisation: grid point 0 of the :class:`SimulationInput` is preceded by one
 pad day of constant first boundary values; EnergyPlus' warm-up repeats that
 day (at least as many days as needed for the wall's slowest mode to decay
@@ -48,16 +53,18 @@ steady state of the first boundary values.
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ...errors import EngineError, OptionalDependencyError
 from ...grid import PropertyArrays
-from ..base import Capabilities, Engine, EngineOutput, SimulationInput
+from ..base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch, stack_outputs
 from ..depthflux import depth_triplet, flux_at_depth
 from .model import (
     ALLOWED_STEPS_PER_HOUR,
@@ -211,6 +218,44 @@ class EnergyPlusEngine(Engine):
         self.check(inp)
         return PreparedEnergyPlus(inp, int(round(3600.0 / float(inp.time_step))))
 
+    def run(self, prepared, walls=None, *, initial_state=None):
+        """The contract's :meth:`~wallcal.engines.base.Engine.run`: the prepared wall, another wall, or a batch,
+        every run through :meth:`run_inputs` (so a batch runs in parallel on the executor)."""
+        if initial_state is not None:
+            raise EngineError(f"the {self.name} engine cannot start from a given state")
+        if isinstance(prepared, SimulationInput):
+            prepared = self.prepare(prepared)
+        inp = prepared.inp
+        if not is_batch(walls):
+            wall = inp.wall if walls is None else walls
+            return self.run_inputs([inp if wall is inp.wall else inp.replace(wall=wall)])[0]
+        if isinstance(walls, WallBatch):
+            walls = walls.walls(inp.wall, inp.probes)
+        return stack_outputs(self.name, inp.probes, self.run_inputs([inp.replace(wall=w) for w in walls]))
+
+    def run_inputs(self, inputs: Sequence[SimulationInput]) -> list[EngineOutput]:
+        """Run EnergyPlus on each input (each checked first), one task per run on the active executor of
+        :mod:`wallcal.cluster`, else on ``WALLCAL_SCHEDULER``, else here one after the other.
+
+        Raises
+        ------
+        EngineError
+            An input EnergyPlus cannot run, or a run that failed (its severe and fatal lines).
+        """
+        from ...cluster import SCHEDULER_ENV, current_executor, executor_from
+
+        tasks = []
+        for inp in inputs:
+            self.check(inp)
+            tasks.append((self.settings, inp, int(round(3600.0 / float(inp.time_step)))))
+        ex = current_executor()
+        if ex is not None:
+            return ex.map(run_task, tasks)
+        if os.environ.get(SCHEDULER_ENV, "").strip():
+            with executor_from(label="EnergyPlus runs") as ex:
+                return ex.map(run_task, tasks)
+        return [run_task(t) for t in tasks]
+
     def run_wall(self, prepared: PreparedEnergyPlus, wall) -> EngineOutput:
         """Simulate one wall with EnergyPlus (the contract's :meth:`~wallcal.engines.base.Engine.run` runs
         the prepared wall, another wall, or a batch one run after the other through it).
@@ -326,6 +371,13 @@ class EnergyPlusEngine(Engine):
         return EngineOutput(temperatures=out_t, fluxes=out_q, info=info)
 
 
+def run_task(task) -> EngineOutput:
+    """One EnergyPlus run (a task of :mod:`wallcal.cluster`): ``task`` = (the engine's settings, a checked
+    :class:`SimulationInput`, timesteps per hour). The run makes its own temporary directory."""
+    settings, inp, steps_per_hour = task
+    return EnergyPlusEngine(**settings)._run_one(inp, steps_per_hour)
+
+
 class PreparedEnergyPlus:
     """A checked input and its timesteps per hour (EnergyPlus builds its model per run)."""
 
@@ -361,6 +413,7 @@ __all__ = [
     "read_node_depths",
     "read_node_temperatures",
     "run_idf_objects",
+    "run_task",
     "slowest_time_constant",
     "warmup_days_needed",
     "weather_file",
