@@ -6,16 +6,15 @@ depths (on nodes, between nodes, at contact interfaces with either side), every 
 but heat flux on both faces, random-ish boundary series and output times between grid times. Each case
 runs a few hundred steps on a small grid.
 
+Every case also asks for the heat flux at depths inside the wall: both faces, every layer interface
+(contact interfaces included), a node inside a layer and random depths between nodes, compared in the
+transient run.
+
 Tolerances: 1e-6 K on temperatures. A face flux is a conductance times a temperature difference (plus
 a capacity over dt times a temperature change), so the matching tolerance on a flux is 1e-6 K times the
 largest such factor at that face: the conductance of the face's link, the surface coefficient and
-c_face / dt [W/(m2K)].
-
-Walls with a table lambda(T) fail here while the fast paths evaluate a table link's Kirchhoff mean by
-Simpson's rule (kernels._update_conductances, _nonlinear_conductances): that is not the mean over the
-link when a table point lies between its two node temperatures (up to 0.67 K apart in this matrix);
-the reference integrates the table exactly, and test_reference_steady_state_is_exact_with_a_table_law
-shows the reference's steady state equal to the closed-form Kirchhoff profile.
+c_face / dt [W/(m2K)]. A flux at a depth inside the wall is a link flux plus a node's storage: 1e-6 K
+times twice the largest link conductance plus the largest node capacity over dt.
 """
 
 from __future__ import annotations
@@ -132,6 +131,14 @@ def make_case(seed: int, scheme: str = "cn") -> SimulationInput:
     node_rule = str(rng.choice(["wallcal", "energyplus"]))
     while build_grid(wall, dt, grid_constant, node_rule).n_nodes > MAX_NODES:  # keep the grid small
         grid_constant *= 2.0
+    # heat flux at depths: the faces, every layer interface, a node inside a layer, two depths between nodes
+    x = build_grid(wall, dt, grid_constant, node_rule).x
+    drng = np.random.default_rng(10_000 + seed)
+    inner_nodes = [float(v) for v in x[1:-1] if not np.any(np.isclose(v, bounds, rtol=0, atol=1e-12))]
+    depths = [float(b) for b in bounds] + [float(v) for v in drng.uniform(0.0, wall.thickness, 2)]
+    depths += [0.5 * float(x[0] + x[1]), 0.5 * float(x[-2] + x[-1])]  # links at the faces (a known face node)
+    if inner_nodes:
+        depths.append(float(drng.choice(inner_nodes)))
     return SimulationInput(
         wall=wall,
         t0=pd.Timestamp("2024-01-01"),
@@ -141,6 +148,7 @@ def make_case(seed: int, scheme: str = "cn") -> SimulationInput:
         output_positions=pos,
         probes=tuple(p.name for p in wall.probes),
         flux_faces=("exterior", "interior"),
+        flux_depths=tuple((f"q@{k}", d) for k, d in enumerate(depths)),
         grid_constant=grid_constant,
         node_rule=node_rule,
         scheme=scheme,
@@ -171,6 +179,9 @@ def flux_tolerances(inp: SimulationInput) -> dict[str, float]:
     for face, b, j in (("exterior", inp.exterior, 0), ("interior", inp.interior, -1)):
         h = b.surface_coefficient or 0.0
         tol[face] = T_TOL * (2.0 * g_max + h + disc.capacity[j] / inp.time_step)
+    inner = T_TOL * (2.0 * g_max + disc.capacity.max() / inp.time_step)
+    for name, _ in inp.flux_depths:  # on a face the face's (the flux there is the face flux)
+        tol[name] = max(inner, tol["exterior"], tol["interior"])
     return tol
 
 
@@ -210,8 +221,11 @@ def test_fast_paths_match_reference(seed, scheme):
         d_t, d_q = _max_diffs(ref, out)
         label = f"seed {seed} {scheme} {path} [{family(inp)}]"
         assert d_t <= T_TOL, f"{label}: temperatures differ by {d_t:.3g} K"
+        assert set(d_q) == {"exterior", "interior", *(name for name, _ in inp.flux_depths)}
         for face, d in d_q.items():
-            assert d <= qtol[face], f"{label}: {face} flux differs by {d:.3g} W/m2 (tolerance {qtol[face]:.3g})"
+            depth = dict(inp.flux_depths).get(face)
+            where = face if depth is None else f"flux at {depth:.6g} m"
+            assert d <= qtol[face], f"{label}: {where} differs by {d:.3g} W/m2 (tolerance {qtol[face]:.3g})"
     assert "general" in ran
 
 
@@ -237,6 +251,14 @@ def test_generator_covers_every_family():
         n_stiff += bool((theta[massive] > 0.5).any())  # theta raised on a massive link: stiff
         n_side += any(p.side is not None for p in inp.wall.probes)
     assert n_stiff >= 3 and n_side >= 5
+    # fluxes at depths on contact interfaces and on no-mass layers' faces
+    n_contact = n_nomass = 0
+    for s in range(N_CASES):
+        w = make_case(s).wall
+        depths = {d for _, d in make_case(s).flux_depths}
+        n_contact += any(w.interfaces[i + 1] in depths for i, L in enumerate(w.layers[:-1]) if L.contact_resistance > 0)
+        n_nomass += any(w.interfaces[i] in depths for i, L in enumerate(w.layers) if L.is_massless)
+    assert n_contact >= 5 and n_nomass >= 5
     # the modal path takes walls whose every term keeps theta0 (the theta rule raises it on stiff nodes)
     for scheme, least in (("cn", 5), ("implicit", 8)):
         n_modal = 0

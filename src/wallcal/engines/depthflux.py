@@ -1,8 +1,9 @@
-"""Heat flux density at a depth inside the wall, from temperatures around that depth (shared by the engines).
+"""Heat flux density at a depth inside the wall, from temperatures around that depth (the ``energyplus`` engine).
 
-An engine that gives temperatures anywhere in the wall (linear between its nodes) reads the flux at
-depth ``x`` from three temperatures at ``x - h``, ``x`` and ``x + h`` (h = 1 mm, each half kept inside the
-wall and inside its layer):
+The fd engines give the scheme's own flux through the plane instead (:func:`wallcal.engines.fd.depth_plane`,
+docs/engine.md). An engine that gives only temperatures anywhere in the wall (linear between its nodes)
+reads the flux at depth ``x`` from three temperatures at ``x - h``, ``x`` and ``x + h`` (h = 1 mm, each half
+kept inside the wall and inside its layer):
 each half gives the flux of the link it lies in, ``q_l = lambda_l (T(x-h) - T(x)) / h`` and
 ``q_r = lambda_r (T(x) - T(x+h)) / h``, lambda at the half-interval's mean temperature. Inside a layer
 ``q = (q_l + q_r) / 2`` (a central difference at a node). At a layer interface the heat stored in the

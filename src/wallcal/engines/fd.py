@@ -32,8 +32,10 @@ Scheme details
   heat fluxes from the surface half-node energy balance
   ``q_e = g_01 (T_0 - T_1) + c_0 dT_0/dt`` (central difference of the imposed
   series) for surface-temperature faces, ``h (T_air - T_s)`` for air faces. A heat flux inside the
-  wall (``SimulationInput.flux_depths``) comes from three probes the engine adds around the depth
-  (:mod:`wallcal.engines.depthflux`). Outputs between grid times are interpolated linearly in time.
+  wall (``SimulationInput.flux_depths``) is the scheme's own flux through the plane at that depth
+  (:func:`depth_plane`): the link flux between nodes, plus on a node the heat stored by the node's
+  part on the interior side of the plane; the face flux on a face. Outputs between grid times are
+  interpolated linearly in time.
 - Paths: walls with constant conductances take the exact modal fast path (:mod:`wallcal.engines.modal`),
   raised thetas and nodes without capacity included; lambda(T) walls the general tridiagonal path
   (:mod:`wallcal.engines.kernels`), which runs any wall with ``path="general"``.
@@ -65,10 +67,9 @@ from ..grid import (
     build_grid,
     probe_weights,
 )
-from ..wall import Probe, Wall
+from ..wall import Wall
 from . import boundary, kernels, modal, operator
 from .base import BatchOutput, Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch
-from .depthflux import contact_at, depth_probes, flux_at_depth
 
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
 DEFAULT_STIFF_LIMIT = None  # 1 / (1 - theta): the discrete maximum principle (see operator.link_thetas)
@@ -80,8 +81,9 @@ class BatchResult:
 
     Attributes
     ----------
-    out : ndarray, shape (n_candidates, n_probes + 2, n_times)
-        Probe temperatures [degC], then exterior and interior face heat flux [W/m2].
+    out : ndarray, shape (n_candidates, n_probes + 2 + n_depths, n_times)
+        Probe temperatures [degC], then exterior and interior face heat flux, then the heat flux at each
+        of the input's ``flux_depths`` [W/m2].
     energy : ndarray, shape (n_candidates, 3)
         Change of stored energy, energy in (exterior face), energy out (interior face) [J/m2].
     final_state : ndarray, shape (n_candidates, n_nodes)
@@ -158,6 +160,12 @@ class PreparedFD:
         self.out_w = np.clip(pos - step, 0.0, 1.0)
         self.probe_names = tuple(inp.probes)
         self.probe_sides = [self.wall.probe(p).side for p in self.probe_names]
+        # heat flux at depths: the planes on the grid (a face, or the link and node of an inner plane)
+        planes = [depth_plane(grid.x, float(depth)) for _, depth in inp.flux_depths]
+        self.depth_face = np.array([f for f, _, _ in planes], dtype=np.int64)
+        self.depth_inner = np.flatnonzero(self.depth_face < 0)  # the planes inside the wall
+        self.depth_link = np.array([planes[d][1] for d in self.depth_inner], dtype=np.int64)
+        self.depth_node = np.array([planes[d][2] for d in self.depth_inner], dtype=np.int64)
         # conductivity laws per link (constant over candidates except through g_ref); layers whose
         # temperature coefficient is a calibration parameter use the exponential law even at f = 0
         self.exponential_layers = frozenset(inp.options.exponential_layers)
@@ -269,9 +277,10 @@ class PreparedFD:
             ``"auto"`` takes the exact modal fast path when the wall allows it (constant
             conductivities, see :mod:`wallcal.engines.modal`), else the general tridiagonal path.
             The result's ``path`` attribute says which ran.
-        rows : ndarray of bool, shape (n_probes + 2,), optional
-            Output rows wanted (probes, then exterior and interior flux); the fast path forms only
-            these (the others are NaN), which saves time when calibrating on a few targets.
+        rows : ndarray of bool, shape (n_probes + 2 + n_depths,), optional
+            Output rows wanted (probes, then exterior and interior flux, then the fluxes at depths); the
+            fast path forms only these (the others are NaN), which saves time when calibrating on a few
+            targets.
         """
         nc = props.n_candidates
         cap, g = assemble(self.grid, props)
@@ -281,11 +290,29 @@ class PreparedFD:
         pa, pb, pw = self._probe_weights(probe_depths, nc)
         if path == "modal" and not self.modal_possible:
             raise EngineError("the modal fast path needs constant conductivities (no lambda(T)); use path='general'")
+        cplus = self._plane_capacities(props)
         if path in ("auto", "modal") and self.modal_possible:
-            return self._run_modal(cap, g, theta, bc_theta, pa, pb, pw, initial_state, n_forced, rows)
-        return self._run_general(props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state)
+            res = self._run_modal(cap, g, theta, bc_theta, pa, pb, pw, cplus, initial_state, n_forced, rows)
+        else:
+            res = self._run_general(props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state)
+        npr = len(self.probe_names)
+        for d in np.flatnonzero(self.depth_face >= 0):  # a plane on a face: the face flux
+            res.out[:, npr + 2 + d] = res.out[:, npr + self.depth_face[d]]
+        return res
 
-    def _run_general(self, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, initial_state) -> BatchResult:
+    def _plane_capacities(self, props: PropertyArrays) -> np.ndarray:
+        """Per candidate and inner depth plane on a node, the heat capacity [J/(m2K)] of the node's part on
+        the interior side of the plane: half the capacity of the interval that starts there (0 for a
+        no-mass or contact link, and for a plane between two nodes), shape (n_candidates, n_inner)."""
+        grid = self.grid
+        out = np.zeros((props.n_candidates, len(self.depth_link)))
+        for k, (lnk, node) in enumerate(zip(self.depth_link, self.depth_node, strict=True)):
+            li, n = grid.link_layer[lnk], grid.link_intervals[lnk]
+            if node >= 0 and li >= 0 and n > 0:
+                out[:, k] = 0.5 * props.volumetric_heat_capacity[:, li] * props.thickness[:, li] / n
+        return out
+
+    def _run_general(self, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state) -> BatchResult:
         nc = props.n_candidates
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
@@ -293,21 +320,35 @@ class PreparedFD:
         wall = (cap, g, theta)
         laws = (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v)
         faces = (self.bc_type, bc_h, bc_theta, self.ue, self.ui)
-        outputs = (self.out_step, self.out_w, pa, pb, pw)
+        outputs = (self.out_step, self.out_w, pa, pb, pw, self.depth_link, self.depth_node, cplus / self.dt)
 
         def part(sl):
             return kernels.run_batch(
                 tuple(a[sl] for a in wall),
                 laws[:1] + (coef[sl],) + laws[2:],
                 faces[:1] + (bc_h[sl], bc_theta[sl]) + faces[3:],
-                outputs[:2] + tuple(a[sl] for a in outputs[2:]),
+                outputs[:2] + tuple(a[sl] for a in outputs[2:5]) + outputs[5:7] + (outputs[7][sl],),
                 self.dt,
                 self.refactor_drift,
                 tinit[sl],
             )
 
         out, energy, tend = in_threads(part, nc)
+        out = self._with_depth_rows(out)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
+
+    def _with_depth_rows(self, out: np.ndarray, inner: np.ndarray | None = None) -> np.ndarray:
+        """The output array with one row per flux depth after the face rows: ``inner`` (or the rows after
+        the face rows of ``out``) for the planes inside the wall, NaN for the faces' (filled by the caller)."""
+        npr = len(self.probe_names)
+        if not len(self.depth_face):
+            return out[:, : npr + 2]
+        if inner is None:
+            inner = out[:, npr + 2 :]
+        full = np.full((out.shape[0], npr + 2 + len(self.depth_face), out.shape[2]), np.nan)
+        full[:, : npr + 2] = out[:, : npr + 2]
+        full[:, npr + 2 + self.depth_inner] = inner
+        return full
 
     # ------------------------------------------------------------------ fast path
     def _output_plan(self, input_thetas: tuple[float, float] | None = None) -> modal.ModalPlan:
@@ -321,15 +362,35 @@ class PreparedFD:
             self._plan = modal.modal_plan(self.out_step, self.out_w, default, self.ue, self.ui, self.dt)
         return self._plan
 
-    def _run_modal(self, cap, g, theta, bc_theta, pa, pb, pw, initial_state, n_forced, rows=None) -> BatchResult:
+    def _run_modal(self, cap, g, theta, bc_theta, pa, pb, pw, cplus, initial_state, n_forced, rows=None):
         """The modal path; candidates whose inputs enter through terms with a raised theta run with a
-        plan of their own (one call per distinct pair of input thetas)."""
+        plan of their own (one call per distinct pair of input thetas).
+
+        A flux at an inner depth plane is the step flux ``F^{n+1/2} = alpha . T^{n+1} + beta . T^n`` of the
+        plane's link (plus the storage of the node's interior part, on a node), so the kernel forms two
+        rows per plane, one over the new and one over the old level (:func:`wallcal.engines.modal.output_plan`);
+        their sum, plus what a known face node on the link adds through its input, is the flux."""
         nc, n_nodes = cap.shape
-        want = np.ones(pa.shape[1] + 2, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
+        npr, n_d, n_in = pa.shape[1], len(self.depth_face), len(self.depth_link)
+        want = np.ones(npr + 2 + n_d, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
+        if len(want) == npr + 2 and n_d:
+            want = np.concatenate([want, np.zeros(n_d, dtype=np.bool_)])
+        want_k = np.zeros(npr + 2 + 2 * n_in, dtype=np.bool_)  # the kernel's rows
+        want_k[: npr + 2] = want[: npr + 2]
+        for d in np.flatnonzero(want[npr + 2 :]):
+            if self.depth_face[d] >= 0:
+                want_k[npr + self.depth_face[d]] = True
+        inner_want = want[npr + 2 + self.depth_inner]
+        want_k[npr + 2 :: 2] = inner_want
+        want_k[npr + 3 :: 2] = inner_want
+        # the two levels' weights on the link's nodes (a, a + 1): new (a, b), old (a, b)
+        th, gl = theta[:, self.depth_link], g[:, self.depth_link]
+        cp = cplus / self.dt
+        dws = np.ascontiguousarray(np.stack([th * gl + cp, -th * gl, (1.0 - th) * gl - cp, -(1.0 - th) * gl], axis=2))
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         th_in = modal.input_thetas(theta, bc_theta, self.bc_type)
         keys = [(float(a), float(b)) for a, b in th_in]
-        out = np.empty((nc, pa.shape[1] + 2, len(self.out_step)))
+        out = np.empty((nc, npr + 2 + 2 * n_in, len(self.out_step)))
         tend = np.empty((nc, n_nodes))
         for key in dict.fromkeys(keys):
             idx = np.flatnonzero([k == key for k in keys])
@@ -338,15 +399,43 @@ class PreparedFD:
             def part(sl, idx=idx, plan=plan):
                 i = idx[sl]
                 return modal.modal_batch(
-                    cap[i], g[i], theta[i], bc_theta[i], pa[i], pb[i], pw[i], self.bc_type, self.bc_h, self.theta,
-                    self.dt, self.ue, self.ui, plan, want, t0[i],
+                    cap[i], g[i], theta[i], bc_theta[i], pa[i], pb[i], pw[i], self.depth_link, dws[i], self.bc_type,
+                    self.bc_h, self.theta, self.dt, self.ue, self.ui, plan, want_k, t0[i],
                 )  # fmt: skip
 
             out[idx], tend[idx] = in_threads(part, len(idx))
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
+        inner = out[:, npr + 2 :: 2] + out[:, npr + 3 :: 2] + self._known_node_terms(dws, n_nodes)
+        out = self._with_depth_rows(out[:, : npr + 2], inner)
+        out[:, npr + 2 :][:, ~want[npr + 2 :]] = np.nan
         energy = np.full((nc, 3), np.nan)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
+
+    def _known_node_terms(self, dws: np.ndarray, n_nodes: int) -> np.ndarray:
+        """What a known face node on an inner plane's link adds to the plane's flux at the output times:
+        its weights in the new and old level times the input's grid-time values over the new levels
+        ``(u^j + u^{j+1}) / 2`` and the old levels ``(u^{j-1} + u^j) / 2`` (one-sided at the ends),
+        interpolated to the output times like every output. Shape (n_candidates, n_inner, n_times)."""
+        nc, n_in = dws.shape[0], dws.shape[1]
+        terms = np.zeros((nc, n_in, len(self.out_step)))
+        for f, e, u in ((0, 0, self.ue), (1, 1, self.ui)):
+            if not boundary.is_known(self.bc_type[f]):
+                continue
+            node = 0 if f == 0 else n_nodes - 1
+            hit = np.flatnonzero(self.depth_link + e == node)
+            if not len(hit):
+                continue
+            new = np.empty(len(u))
+            old = np.empty(len(u))
+            new[1:-1] = 0.5 * (u[1:-1] + u[2:])
+            old[1:-1] = 0.5 * (u[:-2] + u[1:-1])
+            new[0], old[0] = u[1], u[0]
+            new[-1], old[-1] = u[-1], u[-2]
+            at = [(1.0 - self.out_w) * v[self.out_step] + self.out_w * v[self.out_step + 1] for v in (new, old)]
+            for k in hit:
+                terms[:, k] += dws[:, k, e, None] * at[0] + dws[:, k, 2 + e, None] * at[1]
+        return terms
 
     def run_walls(self, walls: list[Wall], path: str = "auto") -> BatchResult:
         """Run candidate walls (same layer structure as the prepared wall)."""
@@ -359,6 +448,8 @@ class PreparedFD:
         fluxes = {}
         for face in self.inp.flux_faces:
             fluxes[face] = res.out[c, npr + (0 if face == "exterior" else 1)].copy()
+        for d, (name, _) in enumerate(self.inp.flux_depths):
+            fluxes[name] = res.out[c, npr + 2 + d].copy()
         e_in, e_out = res.energy[c, 1], res.energy[c, 2]
         info = {
             "engine": f"fd-{self.inp.scheme}",
@@ -379,8 +470,7 @@ class PreparedFD:
 class FDEngine(Engine):
     """Finite-volume theta-scheme engine (see module docstring) behind the engine contract.
 
-    :meth:`prepare` returns a :class:`PreparedFD` (its ``inp`` carries, after the input's probes,
-    three probes around each of ``inp.flux_depths``); :meth:`run` runs it for the prepared wall,
+    :meth:`prepare` returns a :class:`PreparedFD`; :meth:`run` runs it for the prepared wall,
     another wall or a batch through :meth:`PreparedFD.run_batch`.
     """
 
@@ -416,19 +506,9 @@ class FDEngine(Engine):
         """Grid, boundary series, laws and output plan of ``inp`` (the grid follows C and the time step, or
         ``options.grid_time_step``; contact links at ``options.contact_layers`` even without resistance)."""
         opts = inp.options
-        core = inp
-        if inp.flux_depths:  # three probes around each depth, after the input's probes
-            extra = tuple(
-                Probe(_depth_probe(name, k), x, side)
-                for name, depth in inp.flux_depths
-                for k, (x, side) in enumerate(depth_probes(inp.wall, depth, opts.contact_layers))
-            )
-            core = inp.replace(
-                wall=inp.wall.replace(probes=inp.wall.probes + extra), probes=inp.probes + tuple(p.name for p in extra)
-            )
         grid_dt = opts.grid_time_step or inp.time_step
         grid = build_grid(inp.wall, grid_dt, inp.grid_constant, inp.node_rule, opts.contact_layers)
-        return PreparedFD(core, grid, stiff_limit=opts.stiff_limit)
+        return PreparedFD(inp, grid, stiff_limit=opts.stiff_limit)
 
     def run(self, prepared: PreparedFD | SimulationInput, walls=None, *, initial_state=None, path: str = "auto"):
         """Run the prepared wall, another wall (:class:`EngineOutput`) or a batch (:class:`BatchOutput`).
@@ -441,34 +521,32 @@ class FDEngine(Engine):
             prepared = self.prepare(prepared)
         t = time.perf_counter()
         inp = prepared.inp
-        n_user = len(inp.probes) - 3 * len(inp.flux_depths)
+        npr = len(inp.probes)
         if is_batch(walls):
-            batch = walls if isinstance(walls, WallBatch) else WallBatch.from_walls(walls, inp.probes[:n_user])
-            rows = np.zeros(len(inp.probes) + 2, dtype=bool)
-            rows[: len(inp.probes)] = True
+            batch = walls if isinstance(walls, WallBatch) else WallBatch.from_walls(walls, inp.probes)
+            rows = np.zeros(npr + 2 + len(inp.flux_depths), dtype=bool)
+            rows[:npr] = True
+            rows[npr + 2 :] = True
             for face in inp.flux_faces:
-                rows[len(inp.probes) + (0 if face == "exterior" else 1)] = True
+                rows[npr + (0 if face == "exterior" else 1)] = True
         else:
-            batch = self._batch_of(inp.wall if walls is None else walls, inp.probes[:n_user])
+            batch = self._batch_of(inp.wall if walls is None else walls, inp.probes)
             rows = None
-        depths = _with_depth_probes(prepared, batch)
+        depths = batch.probe_depths
+        if depths is not None:
+            depths = np.asarray(depths, dtype=float).reshape(batch.n, npr)
         if initial_state is not None:
             initial_state = np.broadcast_to(np.asarray(initial_state, dtype=float), (batch.n, prepared.grid.n_nodes))
         res = prepared.run_batch(batch.properties, depths, initial_state=initial_state, path=path, rows=rows)
         if not is_batch(walls):
             out = prepared.to_output(res, 0, elapsed=None)
-            for name in inp.probes[n_user:]:
-                del out.temperatures[name]
-            for name, depth in inp.flux_depths:
-                out.fluxes[name] = _depth_flux(prepared, res.out, batch.properties, name, depth, n_user)[0]
             out.info["seconds"] = time.perf_counter() - t
             out.final_state = res.final_state[0]
             return out
-        npr = len(inp.probes)
-        temps = {name: res.out[:, k] for k, name in enumerate(inp.probes[:n_user])}
+        temps = {name: res.out[:, k] for k, name in enumerate(inp.probes)}
         fluxes = {face: res.out[:, npr + (0 if face == "exterior" else 1)] for face in inp.flux_faces}
-        for name, depth in inp.flux_depths:
-            fluxes[name] = _depth_flux(prepared, res.out, batch.properties, name, depth, n_user)
+        for d, (name, _) in enumerate(inp.flux_depths):
+            fluxes[name] = res.out[:, npr + 2 + d]
         info = {
             "engine": self.name,
             "path": res.path,
@@ -479,25 +557,25 @@ class FDEngine(Engine):
         return BatchOutput(temperatures=temps, fluxes=fluxes, info=info, final_state=res.final_state)
 
 
-def _depth_probe(name: str, k: int) -> str:
-    return f"__{name}__{('minus', 'at', 'plus')[k]}"
+def depth_plane(x: np.ndarray, depth: float) -> tuple[int, int, int]:
+    """Where the plane at ``depth`` [m] lies on a grid with node depths ``x``: (face, link, node).
 
-
-def _with_depth_probes(prepared: PreparedFD, batch: WallBatch) -> np.ndarray:
-    """Probe depth matrix of a batch: the input's probes, then the three probes of each flux depth."""
-    inp = prepared.inp
-    contact = inp.options.contact_layers
-    fixed = [x for _, depth in inp.flux_depths for x, _ in depth_probes(inp.wall, depth, contact)]
-    n_user = len(inp.probes) - len(fixed)
-    user = batch.probe_depths
-    if user is None:
-        user = np.tile([inp.wall.probe(p).depth for p in inp.probes[:n_user]], (batch.n, 1))
-    user = np.asarray(user, dtype=float).reshape(batch.n, n_user)
-    return np.hstack([user, np.tile(fixed, (batch.n, 1))]) if fixed else user
-
-
-def _depth_flux(prepared: PreparedFD, out: np.ndarray, props, name: str, depth: float, n_user: int) -> np.ndarray:
-    inp = prepared.inp
-    k = n_user + 3 * [n for n, _ in inp.flux_depths].index(name)
-    contact = contact_at(inp.wall, depth, inp.options.contact_layers)
-    return flux_at_depth(inp.wall, props, depth, out[:, k], out[:, k + 1], out[:, k + 2], contact_layer=contact)
+    On a face: ``(0, -1, -1)`` (exterior) or ``(1, -1, -1)`` (interior); its flux is the face flux.
+    Strictly between two nodes: ``(-1, l, -1)``, the link ``l`` whose flux crosses it. On a node inside
+    the wall: ``(-1, k, k)``, the node (the interior-most of the nodes at that depth, so that at a
+    contact resistance the plane lies between the contact link and the next layer) and the link that
+    leaves it towards the interior. (:func:`wallcal.engines.reference.flux_at_depth` says the same from
+    the reference's own grid.)
+    """
+    n = len(x)
+    d = min(max(float(depth), 0.0), float(x[-1]))
+    tol = 1e-12 * max(1.0, float(x[-1]))
+    on = np.flatnonzero(np.abs(x - d) <= tol)
+    if not len(on):
+        return -1, int(np.flatnonzero(x < d)[-1]), -1
+    k = int(on[-1])
+    if k == n - 1:
+        return 1, -1, -1
+    if on[0] == 0 and d == 0.0:
+        return 0, -1, -1
+    return -1, k, k

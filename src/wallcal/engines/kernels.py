@@ -400,7 +400,7 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
     cap, g_ref, theta = wall
     kind, coef, tref, tab_start, tab_len, tab_T, tab_v = laws
     bc_type, bc_h, bc_theta, ue, ui = faces
-    out_step, out_w, pa, pb, pw = outputs
+    out_step, out_w, pa, pb, pw, dl, dk, dc = outputs
     n_nodes = cap.shape[0]
     n_links = g_ref.shape[0]
     n_steps = ue.shape[0] - 1
@@ -496,6 +496,8 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
     P = np.zeros((4, n_pr))
     Fe = np.zeros(4)
     Fi = np.zeros(4)
+    n_d = dl.shape[0]
+    Fd = np.zeros((n_d, 4))  # step fluxes through the depth planes, Fd[d, j % 4] = F^{j+1/2}
     imposed_e = boundary.imposes_flux(bc_type[0])  # a heat-flux face reports its imposed value
     imposed_i = boundary.imposes_flux(bc_type[1])
     the = bc_theta[0]
@@ -672,6 +674,15 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
         e_out += dt * fi
         Fe[n & 3] = fe
         Fi[n & 3] = fi
+        # through a depth plane: its link's flux, plus on a node the storage of the node's part on the
+        # interior side of the plane (dc: that capacity over dt)
+        for d in range(n_d):
+            lnk = dl[d]
+            fd = Epad[lnk + 1] + thg[lnk] * (Tnew[lnk] - Tnew[lnk + 1])
+            node = dk[d]
+            if node >= 0:
+                fd += dc[d] * (Tnew[node] - Tn[node])
+            Fd[d, n & 3] = fd
         # probes at grid time n + 1, only when a pending output needs them (out_step is sorted)
         if k_out < n_out and out_step[k_out] <= n + 1:
             row = (n + 1) & 3
@@ -679,7 +690,7 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
                 P[row, q] = (1.0 - pw[q]) * Tnew[pa[q]] + pw[q] * Tnew[pb[q]]
         # outputs between grid nk and nk + 1 are complete once F^{nk+3/2} is known (nk = n - 1)
         while k_out < n_out and out_step[k_out] <= n - 1:
-            _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, imposed_e, imposed_i, out)
+            _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, Fd, n_steps, ue, ui, imposed_e, imposed_i, out)
             k_out += 1
         # next time level: T^n <- T^{n+1}; for lambda(T) also the next step's mid-step temperature
         # 1.5 T^{n+1} - 0.5 T^n, its change, and the predictor 2 T^{n+1} - T^n (into Tnew)
@@ -699,7 +710,7 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
             for j in range(n_nodes):
                 Tn[j] = Tnew[j]
     while k_out < n_out:  # outputs in the last step
-        _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, n_steps, ue, ui, imposed_e, imposed_i, out)
+        _output(k_out, out_step[k_out], out_w[k_out], P, Fe, Fi, Fd, n_steps, ue, ui, imposed_e, imposed_i, out)
         k_out += 1
     e_end = 0.0
     for j in range(n_nodes):
@@ -711,7 +722,7 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
 
 
 @njit(cache=True)
-def _output(k, nk, w, P, Fe, Fi, n_steps, ue, ui, imposed_e, imposed_i, out):
+def _output(k, nk, w, P, Fe, Fi, Fd, n_steps, ue, ui, imposed_e, imposed_i, out):
     n_pr = P.shape[1]
     for q in range(n_pr):
         out[q, k] = (1.0 - w) * P[nk % 4, q] + w * P[(nk + 1) % 4, q]
@@ -721,6 +732,11 @@ def _output(k, nk, w, P, Fe, Fi, n_steps, ue, ui, imposed_e, imposed_i, out):
     out[n_pr + 1, k] = (1.0 - w) * _face_flux(Fi, nk, n_steps, ui, imposed_i) + w * _face_flux(
         Fi, nk + 1, n_steps, ui, imposed_i
     )
+    for d in range(Fd.shape[0]):
+        fd = Fd[d]
+        out[n_pr + 2 + d, k] = (1.0 - w) * _face_flux(fd, nk, n_steps, ue, False) + w * _face_flux(
+            fd, nk + 1, n_steps, ue, False
+        )
 
 
 @njit(cache=True)
@@ -729,12 +745,12 @@ def _candidate(c, wall, laws, faces, outputs):
     cap, g_ref, theta = wall
     kind, coef, tref, tab_start, tab_len, tab_T, tab_v = laws
     bc_type, bc_h, bc_theta, ue, ui = faces
-    out_step, out_w, pa, pb, pw = outputs
+    out_step, out_w, pa, pb, pw, dl, dk, dc = outputs
     return (
         (cap[c], g_ref[c], theta[c]),
         (kind, coef[c], tref, tab_start, tab_len, tab_T, tab_v),
         (bc_type, bc_h[c], bc_theta[c], ue, ui),
-        (out_step, out_w, pa[c], pb[c], pw[c]),
+        (out_step, out_w, pa[c], pb[c], pw[c], dl, dk, dc[c]),
     )
 
 
@@ -742,7 +758,7 @@ def _candidate(c, wall, laws, faces, outputs):
 def _allocate(wall, outputs):
     cap = wall[0]
     nc = cap.shape[0]
-    out = np.full((nc, outputs[2].shape[1] + 2, outputs[0].shape[0]), np.nan)
+    out = np.full((nc, outputs[2].shape[1] + 2 + outputs[5].shape[0], outputs[0].shape[0]), np.nan)
     return out, np.zeros((nc, 3)), np.zeros(cap.shape)
 
 
@@ -760,14 +776,16 @@ def run_batch(wall, laws, faces, outputs, dt, drift, Tinit):
     faces : (bc_type (2,) codes of :mod:`wallcal.engines.boundary`, bc_h (c, 2) surface coefficients
         [W/(m2K)], bc_theta (c, 2) theta of the face terms, ue, ui (n_steps + 1,) inputs [degC or W/m2])
     outputs : (out_step, out_w (k,): output time = grid time out_step + out_w; pa, pb, pw (c, p): probe
-        interpolation)
+        interpolation; dl, dk (d,), dc (c, d): the heat flux through depth planes: the flux of link dl,
+        plus on node dk (>= 0) dc [W/(m2K)] times the node's temperature change over a step)
     dt : time step [s]
     drift : relative drift of a lambda(T) conductance that triggers a refactorisation (0: every step)
     Tinit : (c, j) initial node temperatures, or shape (c, 0) for the steady start
 
     Returns
     -------
-    out : (c, p + 2, k) probe temperatures [degC], then exterior and interior face flux [W/m2]
+    out : (c, p + 2 + d, k) probe temperatures [degC], then exterior and interior face flux and the flux
+        through each depth plane [W/m2]
     energy : (c, 3) stored-energy change, energy in at the exterior, energy out at the interior [J/m2]
     Tend : (c, j) final node temperatures [degC]
     """

@@ -75,6 +75,9 @@ from . import boundary, operator
 N_FEAT = 6
 #: output rows formed in the fused pass (more requested rows are formed by :func:`_form`)
 N_FUSED = 5
+#: weights per output pattern: probe rows (4 states), exterior and interior face flux (4 + 4), the new and
+#: old levels of a step quantity (4 + 4; depth-flux rows)
+N_PAT_W = 20
 
 
 @njit(cache=True)
@@ -297,9 +300,10 @@ class ModalPlan(NamedTuple):
 
     For k outputs: ``base`` (k,) anchor step; ``opat`` (k, 2) and ``ow`` (k, 2), the weight
     patterns of the grid times ``nk`` and ``nk + 1`` and their weights ``1 - w`` and ``w``; ``wp``,
-    ``wf`` (n_pat, 4) and (n_pat, 8), the weights of the states ``base + 0 .. 3`` in probe rows and in the
-    two face-flux rows for each pattern; ``feat`` (6, k), the input terms of :func:`output_plan`; ``sw`` (6, k),
-    the theta-weighted inputs ``s`` of the steps ``base .. base + 2`` (channels interleaved);
+    ``wf`` (n_pat, 4) and (n_pat, 16), the weights of the states ``base + 0 .. 3`` in probe rows and in the
+    two face-flux rows and the two level rows of a depth flux for each pattern; ``feat`` (6, k), the input
+    terms of :func:`output_plan`; ``sw`` (6, k), the theta-weighted inputs ``s`` of the steps
+    ``base .. base + 2`` (channels interleaved);
     ``pmain`` (1,), the pattern of most outputs and ``mainw`` (k,) its weight in each output, and
     the other (output, pattern, weight) contributions ``xk, xp, xw``; ``s`` (n_steps, 2), the
     theta-weighted inputs of every step. (Per-output arrays are stored output-last, so that the
@@ -336,9 +340,10 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
     base : (k,) int
     opat, ow : (k, 2) int, (k, 2) float
         The patterns of grid times ``nk`` and ``nk + 1`` and their weights.
-    wp : (n_pat, 4), wf : (n_pat, 8)
-        Weights of the states ``base + 0 .. 3`` in probe rows, and in the exterior (``wf[:, :4]``)
-        and interior (``wf[:, 4:]``) face-flux rows, per pattern.
+    wp : (n_pat, 4), wf : (n_pat, 16)
+        Weights of the states ``base + 0 .. 3`` in probe rows, in the exterior (``wf[:, :4]``)
+        and interior (``wf[:, 4:8]``) face-flux rows, and in the new (``wf[:, 8:12]``) and old
+        (``wf[:, 12:]``) level rows of a step quantity (depth fluxes), per pattern.
     feat : (k, 6)
         Input terms: ``u_e, u_i`` interpolated in time (probe rows on a known face node), then the
         same two-step averages of ``u_e, u_i`` and of their central differences ``du/dt`` (flux rows).
@@ -351,7 +356,7 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
     rows = np.arange(n_out)
     feat[:, 0] = (1.0 - w) * ue[nk] + w * ue[nk + 1]
     feat[:, 1] = (1.0 - w) * ui[nk] + w * ui[nk + 1]
-    pats = np.zeros((2, n_out, 12))  # per grid time nk + jj: probe weights (4), flux weights (4 + 4)
+    pats = np.zeros((2, n_out, N_PAT_W))  # per grid time nk + jj: probe (4), face flux (4 + 4), new, old (4 + 4)
     keys = np.zeros((2, n_out), dtype=np.int64)  # what the weights depend on: offset and kind
     for jj in (0, 1):
         j = nk + jj
@@ -366,13 +371,23 @@ def output_plan(out_step, out_w, n_steps, theta, ue, ui, dt):
             for coef, jx in ((a, jm), (b, j), (c, jp)):  # one entry per row: no repeated index
                 pats[jj, rows, 4 + 4 * f + jx - base] += coef
             feat[:, 2 + f] += wt * (a * u[jm] + b * u[j] + c * u[jp])
+        # the two levels of a step quantity ``F^{n+1/2} = alpha . T^{n+1} + beta . T^n`` (depth-flux rows):
+        # its grid-time value (F^{j-1/2} + F^{j+1/2}) / 2 (one-sided at the ends) weighs the new levels
+        # T^j, T^{j+1} ("new") and the old levels T^{j-1}, T^j ("old")
+        first, end = j == 0, j >= n_steps
+        for off, (wm, w0, wp_) in (
+            (12, (0.0, np.where(first, 0.0, np.where(end, 1.0, 0.5)), np.where(first, 1.0, np.where(end, 0.0, 0.5)))),
+            (16, (np.where(first, 0.0, np.where(end, 1.0, 0.5)), np.where(first, 1.0, np.where(end, 0.0, 0.5)), 0.0)),
+        ):
+            for coef, jx in ((wm, jm), (w0, j), (wp_, jp)):
+                pats[jj, rows, off + jx - base] += coef
         keys[jj] = (j - base) * 3 + np.where(j == 0, 1, np.where(j >= n_steps, 2, 0))
         inv = 1.0 / ((jp - jm) * dt)
         feat[:, 4] += wt * (ue[jp] - ue[jm]) * inv
         feat[:, 5] += wt * (ui[jp] - ui[jm]) * inv
     # the distinct patterns (the weights are a function of the key)
-    ukeys, first, inv_idx = np.unique(keys.reshape(-1), return_index=True, return_inverse=True)
-    uniq = pats.reshape(2 * n_out, 12)[first]
+    ukeys, first_of, inv_idx = np.unique(keys.reshape(-1), return_index=True, return_inverse=True)
+    uniq = pats.reshape(2 * n_out, N_PAT_W)[first_of]
     opat = np.ascontiguousarray(inv_idx.reshape(2, n_out).T, dtype=np.int64)
     ow = np.ascontiguousarray(np.column_stack([1.0 - w, w]))
     wp = np.ascontiguousarray(uniq[:, :4])
@@ -428,10 +443,14 @@ def modal_plan(out_step, out_w, theta, ue, ui, dt) -> ModalPlan:
 
 
 @njit(cache=True)
-def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
+def _rows(cap, g, pa, pb, pw, dl, dw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     """K over the unknowns (kd, ko), output rows over nodes and their input coefficients.
 
-    G_nodes : (n_q, m) output rows over the unknown temperatures (probes, q_e, q_i);
+    dl : (n_d,) link of each depth-flux plane; dw : (n_d, 4) the weights of its two nodes ``dl, dl + 1``
+    in the new level (``dw[:, :2]``) and the old level (``dw[:, 2:]``) of the step flux (a known face
+    node's weights are left to the caller: they multiply the input).
+    G_nodes : (n_q, m) output rows over the unknown temperatures (probes, q_e, q_i, then the new and the
+    old level of each depth flux);
     D : (n_q, 6) coefficients of the input features of :func:`output_plan`.
     Returns the input couplings (p_e at unknown 0, p_i at unknown m - 1).
     """
@@ -464,6 +483,13 @@ def _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
         D[q, 2 + f] = b
         D[q, 4 + f] = c
         D[q, f] = d
+    for dd in range(dl.shape[0]):
+        for lev in range(2):
+            q = npr + 2 + 2 * dd + lev
+            for e in range(2):
+                i = dl[dd] + e - j0
+                if 0 <= i < m:
+                    G_nodes[q, i] += dw[dd, 2 * lev + e]
     return pe, pi
 
 
@@ -477,7 +503,12 @@ def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
     Q = np.empty((3, m))
     for p in range(wp.shape[0]):
         for q in rq:
-            w = wp[p] if q < npr else (wf[p, :4] if q == npr else wf[p, 4:])
+            if q < npr:  # probe rows
+                w = wp[p]
+            elif q < npr + 2:  # face fluxes
+                w = wf[p, 4 * (q - npr) : 4 * (q - npr) + 4]
+            else:  # depth-flux rows: the new level, then the old level of each
+                w = wf[p, 8 + 4 * ((q - npr) % 2) : 12 + 4 * ((q - npr) % 2)]
             for k in range(m):
                 u = mu[k]
                 P[k] = w[0] + u * (w[1] + u * (w[2] + u * w[3]))
@@ -632,7 +663,7 @@ def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_s
 
 
 @njit(cache=True, nogil=True)
-def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s):
+def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s):
     """Run every candidate through its modal recursion (see module docstring). Releases the GIL: a
     caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`).
 
@@ -640,6 +671,8 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
     ----------
     cap : (c, j) node heat capacities; g : (c, l) link conductances
     pa, pb, pw : (c, p) probe interpolation (see :func:`wallcal.grid.probe_weights`)
+    dl : (d,) link of each depth-flux plane; dws : (c, d, 4) the weights of its nodes in the step flux's
+        new and old level (see :func:`_rows`)
     bc_type : (2,) boundary codes; bc_h : (2,) surface coefficients
     thetas : (c, l), bc_thetas : (c, 2) theta of each link and face term
         (:func:`wallcal.engines.operator.link_thetas`); the terms through which the inputs enter must
@@ -650,12 +683,12 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
     want : (p + 2,) bool, the output rows to form (the others are NaN)
     t0 : (c, j) initial node temperatures, or shape (c, 0) for the steady state of the first inputs
 
-    Returns out (c, p + 2, k) and the final node temperatures (c, j) (known face nodes included).
-    ``want`` (p + 2,) bool: the output rows to form (others are left NaN); fewer rows need fewer
+    Returns out (c, p + 2 + 2 d, k) and the final node temperatures (c, j) (known face nodes included).
+    ``want`` (p + 2 + 2 d,) bool: the output rows to form (others are left NaN); fewer rows need fewer
     eigenvector components and less work per output time. (One function with the candidate loop
     around the body: each level of njit calls re-optimises its callees, so a wrapper costs compile time.)
     """
-    outs = np.empty((caps.shape[0], pas.shape[1] + 2, plan[0].shape[0]))  # plan[0]: the anchors, one per output
+    outs = np.empty((caps.shape[0], pas.shape[1] + 2 + 2 * dl.shape[0], plan[0].shape[0]))  # plan[0]: the anchors
     tends = np.empty(caps.shape)
     for cand in range(caps.shape[0]):
         cap = caps[cand]
@@ -663,6 +696,7 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
         pa = pas[cand]
         pb = pbs[cand]
         pw = pws[cand]
+        dw = dws[cand]
         t0 = t0s[cand]
         out = outs[cand]
         tend = tends[cand]
@@ -670,13 +704,13 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, bc_type, bc_h, theta
         n_nodes = cap.shape[0]
         j0, m = operator.unknown_range(n_nodes, bc_type)
         npr = pa.shape[0]
-        n_q = npr + 2
+        n_q = npr + 2 + 2 * dl.shape[0]
         n_steps = ue.shape[0] - 1
         kd = np.empty(m)
         ko = np.empty(m)
         G_nodes = np.empty((n_q, m))
         D = np.empty((n_q, N_FEAT))
-        pe, pi = _rows(cap, g, pa, pb, pw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
+        pe, pi = _rows(cap, g, pa, pb, pw, dl, dw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D)
         n_rq = np.int64(0)  # (not a literal 0: numba would compile _recursion for Literal[int](0) too)
         for q in range(n_q):
             if want[q]:

@@ -65,7 +65,7 @@ import numpy as np
 from ...errors import EngineError, OptionalDependencyError
 from ...grid import PropertyArrays
 from ..base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch, stack_outputs
-from ..depthflux import depth_triplet, flux_at_depth
+from ..depthflux import contact_at, depth_probes, flux_at_depth
 from .model import (
     ALLOWED_STEPS_PER_HOUR,
     DAY,
@@ -362,12 +362,14 @@ class EnergyPlusEngine(Engine):
             else:
                 raise EngineError(f"flux face must be 'exterior' or 'interior', got {face!r}")
         props = PropertyArrays.from_walls([inp.wall]) if inp.flux_depths else None
-        for name, depth in inp.flux_depths:
+        contacts = inp.options.contact_layers
+        for name, depth in inp.flux_depths:  # at a contact interface: its two sides, the contact link's flux
             t3 = [
-                np.interp(pos, grid, probe_series(x, temps, d, None, inp.wall.thickness))[None]
-                for d in depth_triplet(inp.wall, depth)
+                np.interp(pos, grid, probe_series(x, temps, d, side, inp.wall.thickness))[None]
+                for d, side in depth_probes(inp.wall, depth, contacts)
             ]
-            out_q[name] = flux_at_depth(inp.wall, props, depth, *t3)[0]
+            contact = contact_at(inp.wall, depth, contacts)
+            out_q[name] = flux_at_depth(inp.wall, props, depth, *t3, contact_layer=contact)[0]
         return EngineOutput(temperatures=out_t, fluxes=out_q, info=info)
 
 
