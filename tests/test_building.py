@@ -308,3 +308,62 @@ def test_the_building_table_is_validated_with_key_paths(tmp_path):
     assert "building.start: must be a day" in msg
     assert "building.surfacs: unknown key; did you mean 'surfaces'" in msg
     assert "building.timesteps_per_hour: must divide 60" in msg
+
+
+@pytest.mark.slow
+def test_an_idf_model_converted_by_energyplus_with_one_surface(tmp_path, capsys):
+    """--building model.idf (converted with energyplus --convert-only) and --surfaces: only the south wall
+    gets the wall under test; the other walls keep their own construction."""
+    import subprocess
+
+    from wallcal.engines.energyplus.runner import energyplus_binary
+
+    model = reference_building()
+    for name, s in model["BuildingSurface:Detailed"].items():
+        if s["surface_type"] == "Wall" and name != "WALL_SOUTH":
+            s["construction_name"] = "WALLCAL_ROOF"
+    model["Construction"]["WALLCAL_WALL"] = {"outside_layer": "WALLCAL_ROOF_INSULATION"}  # replaced by wallcal
+    (tmp_path / "m.epJSON").write_text(json.dumps(model))
+    subprocess.run(
+        [str(energyplus_binary()), "--convert-only", "-d", str(tmp_path), str(tmp_path / "m.epJSON")],
+        capture_output=True,
+        check=True,
+    )
+    assert (tmp_path / "m.idf").exists()
+    study = load_study(EXAMPLE)
+    (tmp_path / "base.toml").write_text(dump_wall(study.wall))
+    (tmp_path / "kplus.toml").write_text(dump_wall(study.wall.replace_layer("3", conductivity=0.08)))
+    out = tmp_path / "out"
+    args = ["building", _study(tmp_path), "--walls", str(tmp_path / "base.toml"), str(tmp_path / "kplus.toml")]
+    args += ["--building", str(tmp_path / "m.idf"), "--surfaces", "wall_south", "--weather", CHICAGO]
+    args += ["--period", "01-08:01-10", "--out", str(out), "--quiet"]
+    assert main(args) == 0, capsys.readouterr().err
+    tab = pd.read_csv(out / "building.csv").set_index("wall")
+    assert tab.loc["kplus", "heating_kWh"] > tab.loc["base", "heating_kWh"]
+    info = json.loads((out / "building.json").read_text())
+    assert info["surfaces"] == ["WALL_SOUTH"] and info["model"] == "model m.idf"
+    assert info["run_period"] == ["01-08", "01-10"]
+
+
+def test_an_unreachable_scheduler_is_named_within_15_s(tmp_path, capsys):
+    import time
+
+    out = tmp_path / "out"
+    t = time.perf_counter()
+    code = main(
+        [
+            "building",
+            _study(tmp_path),
+            "--weather",
+            CHICAGO,
+            "--period",
+            "01-08:01-09",
+            "--scheduler",
+            "tcp://127.0.0.1:9",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    assert time.perf_counter() - t < 15
+    _assert_clean_error(code, capsys.readouterr(), out, "tcp://127.0.0.1:9")

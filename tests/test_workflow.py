@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from conftest import EXAMPLE, REPO
@@ -42,6 +43,12 @@ def test_run_example_with_a_failing_optional_stage(tmp_path, monkeypatch, capsys
         assert (out / "retrofit" / "variants.csv").exists() and "Retrofit variants over a weather year" in (
             out / "index.html"
         ).read_text()
+        # the example's [building] table: the study's and the calibrated wall in the reference building
+        assert st["building"]["status"] == "ok", st["building"]
+        bt = pd.read_csv(out / "building" / "building.csv")
+        assert list(bt["wall"][:2]) == ["study wall", "calibrated wall"]
+        assert (bt["heating_kWh"] > 0).all()  # --quick: 1-14 January in Chicago
+        assert "The walls in a whole building" in (out / "index.html").read_text()
     except ImportError:
         assert st["retrofit"]["status"] == "failed"
     html = (out / "index.html").read_text()

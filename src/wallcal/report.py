@@ -156,6 +156,20 @@ def _summary(study, outputs) -> str:
                 + "."
             )
         )
+    b = by.get("building")
+    if b and b.status == "ok" and b.tables:
+        bt = b.tables[0][1]
+        items.append(
+            "<b>Building.</b> "
+            + html.escape(
+                "; ".join(
+                    f"{name}: heating {row['heating_kWh_m2']:.1f}, cooling {row['cooling_kWh_m2']:.1f} kWh/m2"
+                    for name, row in bt.head(3).iterrows()
+                )
+                + (f" (and {len(bt) - 3} more walls)" if len(bt) > 3 else "")
+                + "."
+            )
+        )
     failed = [o for o in outputs if o.status == "failed"]
     if failed:
         items.append(

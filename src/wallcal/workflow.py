@@ -11,6 +11,8 @@ Stages, in the order of the reference study:
 7. ``standards`` - ISO 6946 U-value and ISO 13786 dynamic figures before and after, ISO 9869-1 verdict
 8. ``identifiability`` - which calibrated properties the data identify
 9. ``retrofit`` - the study's ``[retrofit]`` variants from the calibrated wall over a weather year
+10. ``building`` - with a ``[building]`` table: the study's and the calibrated wall (and the study's posterior
+    draws) in the whole building through EnergyPlus (``wallcal building``)
 
 Each stage writes its machine-readable results in its own sub-directory of the
 output and returns a :class:`StageOutput` for the report. A failing *optional*
@@ -374,6 +376,36 @@ def _stage_retrofit(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["retrofit"] = res
 
 
+def _stage_building(ctx: RunContext, d: Path, so: StageOutput):
+    import dataclasses
+
+    from .building import WallEntry, building, collect_walls
+    from .retrofitting.run import find_posterior
+
+    spec = ctx.study.building
+    if spec is None:
+        so.status, so.message = "skipped", "the study has no [building] table"
+        return
+    if ctx.quick:  # a preview: two weeks of January
+        spec = dataclasses.replace(spec, start=(1, 1), end=(1, 14))
+    walls = [WallEntry("study wall", ctx.study.wall, "study", "the study's wall")]
+    cal = ctx.results.get("calibration")
+    if cal is not None:
+        walls.append(WallEntry("calibrated wall", cal.wall_opt, "optimal", "the calibration stage"))
+    post, why = find_posterior(ctx.study)
+    if post is not None:
+        walls += collect_walls(ctx.study, (), [post], spec.samples)
+    res = building(ctx.study, walls, spec=spec, progress=ctx.progress)
+    so.files += res.write_into(d)
+    so.text += res.notes()
+    if post is None:
+        so.text.append(f"No posterior draws: {why}. Run 'wallcal posterior STUDY' for the spread over the draws.")
+    so.tables.append(("The walls in the building (building.csv)", res.table().set_index("wall"), ()))
+    if not res.spread().empty:
+        so.tables.append(("Spread over the posterior draws (spread.csv)", res.spread(), ()))
+    ctx.results["building"] = res
+
+
 STAGES = [
     Stage("data", "Measurements", _stage_data, required=True),
     Stage("engines", "Base case in every engine", _stage_engines, required=True),
@@ -384,6 +416,7 @@ STAGES = [
     Stage("standards", "Standards: U-value, dynamic characteristics, ISO 9869-1", _stage_standards),
     Stage("identifiability", "How well the data identify each property", _stage_identifiability),
     Stage("retrofit", "Retrofit variants over a weather year", _stage_retrofit),
+    Stage("building", "The walls in a whole building (EnergyPlus)", _stage_building),
 ]
 
 

@@ -339,7 +339,8 @@ def building(
             }
         )
     if series is not None:
-        first, last = series.index[0], series.index[-1]
+        # EnergyPlus' hours end at the marks: a record from 01:00 to 24:00 (the next day's 00:00) is one day
+        first, last = series.index[0] - pd.Timedelta(seconds=1), series.index[-1] - pd.Timedelta(seconds=1)
         check_period = ((first.month, first.day), (last.month, last.day))
         for e in walls:
             steps = max(spec.timesteps_per_hour, 20) if needs_condfd(e.wall) else spec.timesteps_per_hour
