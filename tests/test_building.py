@@ -22,12 +22,13 @@ CHICAGO = "USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw"
 
 
 def _study(tmp_path, building: str = "") -> str:
-    """The bundled example with a [building] table (and without its retrofit table's weather changed)."""
+    """The bundled example (data and reference wall by absolute path) with ``building`` as its [building] table."""
     text = (
         EXAMPLE.read_text()
         .replace('file = "measured.csv"', f'file = "{EXAMPLE.parent / "measured.csv"}"')
         .replace('reference_wall = "true_wall.toml"', f'reference_wall = "{EXAMPLE.parent / "true_wall.toml"}"')
     )
+    text = text.split("\n[building]")[0]  # the example's own [building] table is replaced by ``building``
     path = tmp_path / "study.toml"
     path.write_text(text + "\n" + building)
     return str(path)
