@@ -145,6 +145,25 @@ def test_bigger_conductivity_gives_more_heating_and_identical_walls_identical_ro
 
 
 @pytest.mark.slow
+def test_the_heating_difference_is_the_walls_ua_difference_times_the_degree_hours(big_run):
+    """A check of area and units: the extra heating of the leakier wall against Delta(U A) x sum(20 - T_air) dt
+    over the week (U by ISO 6946 with Rsi 0.13, Rse 0.04; A = 86.4 m2 of net wall). It is an upper estimate:
+    sun on the walls, EnergyPlus' own surface coefficients and the hours in which gains cover the losses (no
+    heating then) make the simulated difference smaller; measured ratio 0.80."""
+    from wallcal.retrofitting.weather import read_weather
+
+    study = load_study(EXAMPLE)
+    d_u = study.wall.replace_layer("3", conductivity=0.08).u_value() - study.wall.u_value()
+    area = 2 * (24.0 + 19.2)
+    w = read_weather(resolve_weather(CHICAGO)).data
+    week = w[(w.index.month == 1) & (w.index.day >= 8) & (w.index.day <= 14)]["temp_air"].to_numpy()
+    expected_kwh = d_u * area * np.maximum(20.0 - week, 0.0).sum() / 1000.0
+    tab = pd.read_csv(big_run / "building.csv").set_index("wall")
+    got = tab.loc["kplus", "heating_kWh"] - tab.loc["base", "heating_kWh"]
+    assert 0.6 < got / expected_kwh < 1.0, (got, expected_kwh)
+
+
+@pytest.mark.slow
 def test_posterior_spread_and_the_plain_sentence(big_run):
     sp = pd.read_csv(big_run / "spread.csv", index_col="figure")
     tab = pd.read_csv(big_run / "building.csv").set_index("wall")
@@ -161,9 +180,8 @@ def test_posterior_spread_and_the_plain_sentence(big_run):
 @pytest.mark.slow
 def test_whole_envelope_check_finds_the_wall_that_made_the_record(big_run):
     chk = pd.read_csv(big_run / "envelope_check.csv").set_index("wall")
-    # the record is the study wall's own free-floating run over the same days; the two runs agree to about
-    # 1e-3 K (measured: RMSE 0.0012 K), far below the 0.2 K the doubled conductivity makes
-    assert chk.loc["base", "rmse_K"] < 0.01 and abs(chk.loc["base", "mbe_K"]) < 0.01
+    # the record is the study wall's own free-floating run over the same days: the same EnergyPlus run
+    assert chk.loc["base", "rmse_K"] < 1e-4 and abs(chk.loc["base", "mbe_K"]) < 1e-4
     assert chk.loc["kplus", "rmse_K"] > 0.1  # a leakier wall: a colder free-floating zone
     assert chk.loc["kplus", "mbe_K"] < 0
     assert chk.loc["base", "hours"] >= 5 * 24 - 1
