@@ -386,3 +386,26 @@ def test_an_unreachable_scheduler_is_named_within_15_s(tmp_path, capsys):
     )
     assert time.perf_counter() - t < 15
     _assert_clean_error(code, capsys.readouterr(), out, "tcp://127.0.0.1:9")
+
+
+@pytest.mark.slow
+def test_an_interrupted_command_resumes_from_its_finished_runs(tmp_path, capsys, monkeypatch):
+    from wallcal.building.study import BuildingResult
+
+    out = tmp_path / "out"
+    args = ["building", _study(tmp_path), "--weather", CHICAGO, "--period", "01-08:01-09", "--out", str(out)]
+
+    def interrupted(self, *a, **k):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(BuildingResult, "write", interrupted)
+        assert main([*args, "--quiet"]) == 130
+    capsys.readouterr()
+    cache = tmp_path / ".out.building-cache"
+    assert not out.exists() and len(list(cache.glob("*.pkl"))) == 1  # the run finished before the interruption
+    assert main([*args, "--resume"]) == 0
+    err = capsys.readouterr().err
+    assert "1/1, 1 from the cache" in err, err
+    assert pd.read_csv(out / "building.csv")["heating_kWh"].iloc[0] > 0
+    assert not cache.exists()  # the runs are in the output now

@@ -334,7 +334,9 @@ def outdoor_walls(model: dict) -> list[str]:
     return out
 
 
-def select_surfaces(model: dict, names: list[str] | None, source: str = "the building model") -> list[str]:
+def select_surfaces(
+    model: dict, names: list[str] | None, source: str = "the building model", key: str = "--surfaces"
+) -> list[str]:
     """The surfaces that get the wall: ``names`` checked against the model, or every outdoor wall.
 
     Raises
@@ -355,9 +357,9 @@ def select_surfaces(model: dict, names: list[str] | None, source: str = "the bui
         if name.lower() in lower:
             out.append(lower[name.lower()])
         elif name in all_surfaces:
-            problems.append(f"--surfaces: {name!r} is not an outdoor wall of {source}")
+            problems.append(f"{key}: {name!r} is not an outdoor wall of {source}")
         else:
-            problems.append(f"--surfaces: {name!r} is not a surface of {source}; {closest(name, walls)}")
+            problems.append(f"{key}: {name!r} is not a surface of {source}; {closest(name, walls)}")
     if problems:
         raise StudyError(problems)
     return out

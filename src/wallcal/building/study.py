@@ -306,7 +306,8 @@ def building(
         base = reference_building(heating_setpoint=spec.heating_setpoint, cooling_setpoint=spec.cooling_setpoint)
         source = "the reference building (docs/building.md)"
     zones = check_model(base, source)
-    chosen = select_surfaces(base, list(surfaces) if surfaces else list(spec.surfaces), source)
+    key = "--surfaces" if surfaces else "building.surfaces"
+    chosen = select_surfaces(base, list(surfaces) if surfaces else list(spec.surfaces), source, key)
     epw = resolve_building_weather(study, weather)
     series = None
     if measured is not None:
