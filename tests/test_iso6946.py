@@ -8,6 +8,7 @@ Expected totals are written out by hand (sums of d / lambda) in each test.
 
 import math
 
+import numpy as np
 import pytest
 
 from wallcal.errors import StudyError
@@ -358,3 +359,134 @@ def test_two_slightly_ventilated_layers_are_refused():
     # zero surface resistances are allowed (a surface-to-surface figure), negative ones are not
     res = iso6946.thermal_resistance(_slight_wall(panel=0.01), rsi=0.0, rse=0.0)
     assert res.total_resistance == pytest.approx(res.resistance)
+
+
+# ---------------------------------------------------------------------------- each rule at its documented edge
+def test_table_8_function_takes_0_to_0_3_m_and_refuses_the_rest_naming_the_value():
+    assert iso6946.unventilated_air_layer_resistance(0.3) == pytest.approx(0.18)  # the table's last row
+    assert iso6946.unventilated_air_layer_resistance(0.0) == 0.0
+    for bad in (0.3005, -0.001, float("nan")):  # just over 300 mm, negative, not a number
+        with pytest.raises(StudyError) as exc:
+            iso6946.unventilated_air_layer_resistance(bad)
+        assert exc.value.problems == [f"thickness_m: an ISO 6946 air layer must be 0 to 0.3 m thick, got {bad!r}"]
+
+
+def test_table_8_function_returns_a_float_for_a_number_and_an_array_for_an_array():
+    r = iso6946.unventilated_air_layer_resistance(0.05)
+    assert type(r) is float and r == pytest.approx(0.18)  # a plain float prints as 0.18 in reports
+    arr = iso6946.unventilated_air_layer_resistance([0.005, 0.05], "downward")
+    assert isinstance(arr, np.ndarray) and arr == pytest.approx([0.11, 0.21])
+    one = iso6946.unventilated_air_layer_resistance([0.05])
+    assert isinstance(one, np.ndarray) and one.shape == (1,) and one[0] == pytest.approx(0.18)
+
+
+def test_default_arguments_are_the_documented_ones():
+    assert iso6946.surface_resistances() == (0.13, 0.04)  # horizontal heat flow: a wall
+    assert iso6946.air_layer_resistance(0.05) == pytest.approx(0.18)  # unventilated, horizontal
+    with pytest.raises(StudyError) as exc:
+        iso6946.normalize_ventilation("wel")
+    assert exc.value.problems == ["ventilation: unknown ventilation 'wel'; did you mean 'well'?"]
+
+
+def _gap_wall(d):
+    return Wall((Layer("a", 0.1, 0.04, 30, 1000, "wool"), Layer("gap", d, material="air, unventilated")))
+
+
+def test_air_layer_of_a_wall_is_more_than_0_and_at_most_0_3_m_thick():
+    assert iso6946.find_air_layers(_gap_wall(0.3)) == {"gap": "unventilated"}
+    assert iso6946.thermal_resistance(_gap_wall(0.3)).layers[1].resistance == pytest.approx(0.18)
+    with pytest.raises(StudyError) as exc:
+        iso6946.find_air_layers(_gap_wall(0.0))
+    assert exc.value.problems == [
+        "air_layers['gap']: an ISO 6946 air layer must be > 0 and <= 0.3 m thick, got thickness 0.0 m"
+    ]
+
+
+def test_air_layer_without_ventilation_message_names_every_way_out():
+    with pytest.raises(StudyError) as exc:
+        iso6946.find_air_layers(study_wall("Air gap"))
+    assert exc.value.problems == [
+        "wall.layers['2']: material 'Air gap' looks like an air layer but does not say its ventilation; pass "
+        "air_layers={'2': 'unventilated' | 'slightly_ventilated' | 'well_ventilated'} "
+        "(or air_layers={} to treat it as an ordinary layer)"
+    ]
+
+
+def test_a_contact_resistance_on_the_last_layer_is_outside_the_wall():
+    wall = Wall((Layer("a", 0.1, 0.04, 30, 1000), Layer("b", 0.02, 0.2, 500, 1600, contact_resistance=0.3)))
+    res = iso6946.thermal_resistance(wall)
+    assert [b.id for b in res.layers] == ["a", "b"]
+    assert res.resistance == pytest.approx(2.5 + 0.1)
+
+
+def test_notes_and_ignored_layers_name_the_air_layer():
+    well = iso6946.thermal_resistance(study_wall(), air_layers={"2": "well"})
+    assert [(b.id, b.kind, b.resistance) for b in well.layers[:2]] == [("1", "ignored", 0.0), ("2", "ignored", 0.0)]
+    assert well.notes == (
+        "well ventilated air layer '2': it and the layers outside it ignored, Rse = Rsi = 0.13 m2K/W",
+    )
+    thin = iso6946.thermal_resistance(_slight_wall(panel=0.01))
+    assert thin.notes == ("slightly ventilated air layer 'gap': half the Table 8 value (ISO 6946:1996 5.3.3 rule)",)
+
+
+def _membrane_slight_wall(r_membrane):
+    return Wall(
+        (
+            Layer("m", 0.0, thermal_resistance=r_membrane, material="membrane"),
+            Layer("gap", 0.035, material="air, slightly ventilated"),
+            Layer("w", 0.1, 0.04, 135, 1030, "wool"),
+        )
+    )
+
+
+def test_slightly_ventilated_cap_applies_above_0_15_only():
+    # layers outside + Rse = 0.15 + 0 exactly: at the cap, nothing is scaled
+    at = iso6946.thermal_resistance(_membrane_slight_wall(0.15), rse=0.0)
+    assert [b.kind for b in at.layers] == ["no-mass", "air:slightly_ventilated", "material"]
+    assert at.layers[0].resistance == 0.15 and not any("capped" in n for n in at.notes)
+    # Rse = 0.15 itself is allowed: the layers outside are scaled to nothing
+    full = iso6946.thermal_resistance(_slight_wall(), rse=0.15)
+    assert (full.layers[0].kind, full.layers[0].resistance) == ("material(capped)", 0.0)
+    assert full.total_resistance == pytest.approx(0.13 + 0.09 + 2.5 + 0.15, rel=1e-12)
+    # an air layer with nothing outside it and an Rse over the cap
+    bare = Wall((Layer("gap", 0.035, material="air, slightly ventilated"), Layer("w", 0.1, 0.04, 135, 1030, "wool")))
+    with pytest.raises(StudyError, match=r"rse: 0.2 m2K/W exceeds the 0.15 m2K/W cap"):
+        iso6946.thermal_resistance(bare, rse=0.2)
+
+
+def test_opening_area_bounds_follow_iso_6946_2017():
+    # A_v <= 500: unventilated (no interpolation); 500 < A_v <= 1500: interpolated; > 1500: well ventilated
+    at500 = iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=500)
+    assert at500.notes == () and at500.layers[1].kind == "air:unventilated"
+    at1500 = iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=1500)
+    assert "interpolation with A_v = 1500 mm2/m" in at1500.notes[0] and at1500.rse == 0.04
+    well = iso6946.thermal_resistance(_slight_wall(), air_layers={"gap": "well"})
+    over = iso6946.thermal_resistance(_slight_wall(), opening_area_mm2_per_m=1500.5)
+    assert over.total_resistance == pytest.approx(well.total_resistance, rel=1e-12)
+    assert over.notes[0].startswith("well ventilated air layer 'gap'")
+
+
+def test_opening_area_interpolation_keeps_the_direction_for_another_air_layer():
+    wall = Wall(
+        (
+            Layer("p", 0.015, 0.13, 500, 1600, "panel"),
+            Layer("g1", 0.035, material="air, slightly ventilated"),
+            Layer("w", 0.1, 0.04, 135, 1030, "wool"),
+            Layer("g2", 0.05, material="air, unventilated"),
+            Layer("b", 0.0125, 0.2, 530, 1600, "board"),
+        )
+    )
+    # by hand, downward heat flow: Rsi 0.17, Table 8 at 35 mm 0.198 and at 50 mm 0.21
+    r_u = 0.17 + 0.015 / 0.13 + 0.198 + 2.5 + 0.21 + 0.0625 + 0.04
+    r_v = 0.17 + 2.5 + 0.21 + 0.0625 + 0.17  # outside g1 ignored, Rse = Rsi
+    mid = iso6946.thermal_resistance(wall, opening_area_mm2_per_m=1000, direction="downward")
+    assert mid.total_resistance == pytest.approx(0.5 * (r_u + r_v), rel=1e-12)
+
+
+def test_resolve_layers_drops_the_declared_properties_of_an_air_layer():
+    wall = Wall((Layer("gap", 0.035, 0.025, 1.2, 1000, "air, unventilated"), Layer("w", 0.1, 0.04, 135, 1030)))
+    layers, cut = iso6946.resolve_layers(wall)
+    assert cut is False
+    gap = layers[0]
+    assert gap.is_massless and gap.thermal_resistance == pytest.approx(0.18)
+    assert (gap.conductivity, gap.density, gap.specific_heat) == (None, None, None)

@@ -147,9 +147,7 @@ def unventilated_air_layer_resistance(thickness_m, direction: str = "horizontal"
     _check_direction(direction)
     d_mm = np.asarray(thickness_m, dtype=float) * 1000.0
     if np.any(~np.isfinite(d_mm)) or np.any(d_mm < 0) or np.any(d_mm > AIR_LAYER_THICKNESS_MM[-1] + 1e-9):
-        raise StudyError(
-            [f"thickness_m: an ISO 6946 air layer must be 0 to 0.3 m thick, got {np.asarray(thickness_m)!r}"]
-        )
+        raise StudyError([f"thickness_m: an ISO 6946 air layer must be 0 to 0.3 m thick, got {thickness_m!r}"])
     r = np.interp(d_mm, AIR_LAYER_THICKNESS_MM, AIR_LAYER_RESISTANCE[direction])
     return float(r) if np.ndim(r) == 0 else r
 
@@ -442,9 +440,10 @@ def thermal_resistance(
         outside = [b for b in breakdown if b.id.split("/")[0] in ids_outside]
         r_out = sum(b.resistance for b in outside) + rse
         if r_out > SLIGHTLY_VENTILATED_EXTERIOR_CAP:
-            scale = (SLIGHTLY_VENTILATED_EXTERIOR_CAP - rse) / (r_out - rse) if r_out > rse else 0.0
             if SLIGHTLY_VENTILATED_EXTERIOR_CAP < rse:
                 raise StudyError([f"rse: {rse!r} m2K/W exceeds the 0.15 m2K/W cap of a slightly ventilated layer"])
+            # here rse <= cap < r_out, so the layers outside have a resistance > 0 to scale down
+            scale = (SLIGHTLY_VENTILATED_EXTERIOR_CAP - rse) / (r_out - rse)
             breakdown = [
                 LayerResistance(b.id, b.resistance * scale, b.kind + "(capped)") if b in outside else b
                 for b in breakdown
