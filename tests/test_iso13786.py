@@ -523,3 +523,95 @@ def test_profile_and_characteristics_refuse_bad_layers_with_every_problem_named(
         assert part in msg, part
     with pytest.raises(StudyError, match="wall.layers: the wall has no layers"):
         iso13786.periodic_profile(Wall(()), DAY, 1.0, 0.0, [0.0])
+
+
+# --------------------------------------------------------------------------- the checks at their documented edges
+def test_profile_depths_within_rounding_of_the_faces_are_put_on_them():
+    wall = Wall((concrete(0.2),))
+    p = iso13786.periodic_profile(wall, DAY, 1.0, 0.5j, [-1e-14, 0.2 * (1 + 1e-13)])
+    assert p.depths_m.tolist() == [0.0, 0.2]
+    assert p.temperature == pytest.approx([1.0, 0.5j], abs=1e-12)  # the imposed face temperatures
+
+
+@pytest.mark.parametrize(
+    "depths",
+    [[0.1, -1e-6], [0.1, 0.2002], [0.1, float("nan")], [[0.0, 0.1]]],
+    ids=["outside the exterior face", "beyond the interior face", "nan", "two-dimensional"],
+)
+def test_profile_refuses_each_kind_of_bad_depth_naming_the_range(depths):
+    with pytest.raises(StudyError) as exc:
+        iso13786.periodic_profile(Wall((concrete(0.2),)), DAY, 1.0, 0.0, depths)
+    assert exc.value.problems == [f"depths_m: depths must lie in [0, 0.2] m, got {np.asarray(depths)!r}"]
+
+
+def test_profile_accepts_a_wall_of_exactly_max_xi_penetration_depths():
+    delta = iso13786.penetration_depth(1.8, 2400, 1000, DAY)
+    at = Wall((concrete(iso13786.MAX_XI * delta),))  # d / delta is 300.0 to the last bit
+    p = iso13786.periodic_profile(at, DAY, 1.0, 0.0, [0.0])
+    assert p.temperature[0] == pytest.approx(1.0)
+    with pytest.raises(StudyError) as exc:
+        iso13786.periodic_profile(Wall((concrete(301 * delta),)), DAY, 1.0, 0.0, [0.0])
+    assert exc.value.problems == [
+        "period_s: the wall is 301 penetration depths thick at this period (limit 300); "
+        "the response is below rounding, use a longer period"
+    ]
+
+
+def test_at_times_is_the_real_part_of_the_rotating_amplitude_by_hand():
+    wall = Wall((concrete(0.2),))
+    te, ti = 2.0 * np.exp(0.3j), 0.5j
+    p = iso13786.periodic_profile(wall, DAY, te, ti, [0.0, 0.07, 0.2])
+    t = np.array([0.0, DAY / 8, DAY / 3, 0.9 * DAY])
+    got = p.at_times(t)
+    assert got.shape == (4, 3)
+    w = 2 * np.pi / DAY
+    # faces: the imposed signals 2 cos(w t + 0.3) and Re(0.5 i e^{i w t}) = -0.5 sin(w t)
+    np.testing.assert_allclose(got[:, 0], 2.0 * np.cos(w * t + 0.3), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got[:, 2], -0.5 * np.sin(w * t), rtol=0, atol=1e-12)
+    a = p.temperature[1]
+    np.testing.assert_allclose(got[:, 1], a.real * np.cos(w * t) - a.imag * np.sin(w * t), rtol=0, atol=1e-12)
+
+
+def test_no_mass_layers_of_zero_thickness_or_zero_resistance_are_accepted():
+    # a membrane (d = 0, a jump) and a zero-resistance no-mass layer between two concrete layers
+    wall = Wall(
+        (
+            Layer("c1", 0.1, 1.8, 2400, 1000),
+            Layer("m", 0.0, thermal_resistance=0.05),
+            Layer("z", 0.01, thermal_resistance=0.0),
+            Layer("c2", 0.1, 1.8, 2400, 1000),
+        )
+    )
+    kw = dict(period_s=DAY, t_ext_amplitude=1.0, t_int_amplitude=0.0, depths_m=[0.1, 0.11])
+    ext = iso13786.periodic_profile(wall, interface_side="exterior", **kw)
+    intr = iso13786.periodic_profile(wall, interface_side="interior", **kw)
+    q = intr.heat_flux[0]
+    assert abs(q) > 1.0 and intr.heat_flux[1] == pytest.approx(q, rel=1e-12)  # no storage in no-mass layers
+    assert ext.temperature[0] - intr.temperature[0] == pytest.approx(0.05 * q, rel=1e-12)  # the membrane's jump
+    assert intr.temperature[1] == pytest.approx(intr.temperature[0], rel=1e-12)  # no drop across R = 0
+    dc = iso13786.dynamic_characteristics(wall, rsi=0.0, rse=0.0)
+    assert dc.u_value == pytest.approx(1 / (0.1 / 1.8 + 0.05 + 0.0 + 0.1 / 1.8))
+
+
+def test_layer_checks_look_past_a_good_no_mass_layer_and_refuse_bad_ones():
+    wall = Wall(
+        (
+            Layer("m", 0.0, thermal_resistance=0.05),
+            Layer("n", -0.01, thermal_resistance=0.1),
+            Layer("r", 0.0, thermal_resistance=float("nan")),
+            Layer("c", 0.1, 1.8, 0.0, 1000),
+        )
+    )
+    with pytest.raises(StudyError) as exc:
+        iso13786.periodic_profile(wall, DAY, 1.0, 0.0, [0.0])
+    assert exc.value.problems == [
+        "wall.layers['n']: no-mass layer needs thermal_resistance >= 0 and thickness >= 0, got 0.1 m2K/W and -0.01 m",
+        "wall.layers['r']: no-mass layer needs thermal_resistance >= 0 and thickness >= 0, got nan m2K/W and 0.0 m",
+        "wall.layers['c'].density: must be > 0, got 0.0",
+    ]
+    with pytest.raises(StudyError) as exc:
+        iso13786.dynamic_characteristics(wall)
+    assert exc.value.problems == [
+        "wall.layers['r'].thermal_resistance: must be >= 0",
+        "wall.layers['c'].density: must be > 0 for ISO 13786, got 0.0",
+    ]

@@ -435,8 +435,12 @@ def _check_profile_wall(wall):
         problems.append("wall.layers: the wall has no layers")
     for layer in wall.layers:
         if layer.is_massless:
-            if layer.thermal_resistance < 0 or layer.thickness < 0:
-                problems.append(f"wall.layers[{layer.id!r}]: no-mass layer needs thermal_resistance >= 0")
+            r, d = layer.thermal_resistance, layer.thickness
+            if not np.isfinite(r) or r < 0 or d < 0:
+                problems.append(
+                    f"wall.layers[{layer.id!r}]: no-mass layer needs thermal_resistance >= 0 and thickness >= 0, "
+                    f"got {r!r} m2K/W and {d!r} m"
+                )
             continue
         if layer.thickness <= 0:
             problems.append(f"wall.layers[{layer.id!r}].thickness: must be > 0, got {layer.thickness!r}")
