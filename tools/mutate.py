@@ -42,7 +42,7 @@ TESTS: dict[str, list[str]] = {
     "src/wallcal/standards/iso13786.py": ["tests/test_iso13786.py"],
     "src/wallcal/standards/iso9869.py": ["tests/test_iso9869.py"],
     "src/wallcal/standards/insitu.py": ["tests/test_cli_standards.py", "tests/test_insitu.py"],
-    "src/wallcal/grid.py": ["tests/test_reference_physics.py"],
+    "src/wallcal/grid.py": ["tests/test_grid.py", "tests/test_reference_physics.py"],
     "src/wallcal/engines/operator.py": [
         "tests/test_theta_rule.py",
         "tests/test_extreme_walls.py",
