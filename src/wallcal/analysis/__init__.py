@@ -71,7 +71,9 @@ def reference_values(study, space) -> np.ndarray | None:
     ref = load_wall(ref_path)
     out = []
     for p in space.parameters:
-        if p.probe is not None:
+        if p.sensor is not None:
+            out.append(np.nan)  # a wall file holds no sensor offsets
+        elif p.probe is not None:
             probes = {q.name: q.depth for q in ref.probes}
             out.append(probes.get(p.probe, p.base))
         else:

@@ -145,6 +145,8 @@ def _evaluate(ev, X, prog, chunk=1024):
 
 def _layer_of(space, wall, j) -> str:
     p = space.parameters[j]
+    if p.sensor is not None:
+        return f"sensor {p.sensor}"
     if p.probe is not None:
         return f"probe {p.probe}"
     return ",".join(wall.layers[i].id for i in p.layers)

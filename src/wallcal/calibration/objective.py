@@ -137,6 +137,7 @@ class Evaluator:
         self.n_valid = self.mask.sum(axis=1)
         self.evaluations = 0
         self.seconds = 0.0
+        self.has_offsets = any(p.sensor is not None for p in space.parameters)
 
     # ------------------------------------------------------------------ evaluation
     def simulate(self, X: np.ndarray) -> np.ndarray:
@@ -158,9 +159,15 @@ class Evaluator:
         return sim
 
     def errors(self, X: np.ndarray) -> np.ndarray:
-        """Simulated minus measured at the valid samples (0 elsewhere), shape (c, targets, times)."""
+        """Simulated minus measured at the valid samples (0 elsewhere), shape (c, targets, times).
+
+        The measured signal includes the candidates' sensor offsets (``offset`` parameters), if any.
+        """
         sim = self.simulate(X)
-        return np.where(self.mask[None], sim - self.y[None], 0.0)
+        y = self.y[None]
+        if self.has_offsets:
+            y = y + self.space.offsets(X)[:, :, None]
+        return np.where(self.mask[None], sim - y, 0.0)
 
     def per_target(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """CSE and RMSE per candidate and target, each shape (c, n_targets)."""

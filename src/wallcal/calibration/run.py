@@ -278,7 +278,11 @@ def calibrate(
 def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, rec, status) -> CalibrationResult:
     wall_opt = space.wall_at(study.wall, x_opt)
     base_res = simulate(study, prepared=prepared)
-    opt_res = simulate(study, prepared=prepared, wall=wall_opt)
+    offsets = space.offset_values(x_opt)
+    if offsets:  # the calibrated case compares with the measured signals corrected by the calibrated offsets
+        opt_res = simulate(with_sensor_offsets(study, offsets), engine=prepared.engine_name, wall=wall_opt)
+    else:
+        opt_res = simulate(study, prepared=prepared, wall=wall_opt)
     met = pd.concat([base_res.metrics.assign(case="base"), opt_res.metrics.assign(case="calibrated")])
     met = met[["case"] + [c for c in met.columns if c != "case"]]
     floors = {}
@@ -316,6 +320,11 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
             "would move them further, or they are not identified from these data (several walls fit "
             "equally well: see wallcal posterior); review the bounds before trusting these values"
         )
+    if offsets:
+        notes.append(
+            "calibrated sensor offsets (added to the measured signals; the calibrated metrics use the corrected "
+            "signals): " + ", ".join(f"{k} {v:+.4g}" for k, v in offsets.items())
+        )
     sim = {"base": base_res.simulated, "calibrated": opt_res.simulated}
     return CalibrationResult(
         study=study,
@@ -338,6 +347,19 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
         measured=base_res.measured,
         floors=floors,
         notes=notes,
+    )
+
+
+def with_sensor_offsets(study: Study, offsets: dict[str, float]) -> Study:
+    """The study with ``offsets`` [degC or W/m2] added to its sensors' ``offset`` (corrections of the measured
+    signals), e.g. the calibrated values of ``offset`` parameters."""
+    import dataclasses
+
+    return study.replace(
+        sensors=tuple(
+            dataclasses.replace(s, offset=s.offset + float(offsets[s.name])) if s.name in offsets else s
+            for s in study.sensors
+        )
     )
 
 

@@ -1,7 +1,8 @@
 """The calibration parameter space: the ``[calibration]`` table of the study file.
 
 A parameter is one value shared by one or more layers (tied layers) for one
-property, or a probe's depth. Bounds are absolute or relative to the base
+property, a probe's depth, or a target sensor's offset (a correction added to its measured
+signal, like the sensor's own ``offset`` key). Bounds are absolute or relative to the base
 value. The table is validated here, once, when the study is loaded
 (:func:`wallcal.load_study` calls :func:`parse_calibration` with the study's other keys):
 base value inside the bounds, physical values positive over the whole box, no layer or probe
@@ -32,10 +33,11 @@ LAYER_PROPERTIES = (
     "contact_resistance",
 )
 PROBE_PROPERTIES = ("depth",)
+SENSOR_PROPERTIES = ("offset",)
 OBJECTIVES = ("cse", "rmse_accuracy", "weighted_cse", "weighted_rmse")
 ALGORITHMS = ("pso-hj", "least-squares", "differential-evolution", "nelder-mead", "cma-es")
 CALIBRATION_KEYS = ("targets", "objective", "algorithm", "seed", "parameters", "settings", "reference_wall")
-PARAMETER_KEYS = ("layers", "probe", "property", "bounds", "bounds_kind")
+PARAMETER_KEYS = ("layers", "probe", "sensor", "property", "bounds", "bounds_kind")
 #: physical lower limits (exclusive) per property
 _POSITIVE = {"conductivity": 0.0, "density": 0.0, "specific_heat": 0.0}
 _NONNEGATIVE = {"contact_resistance": 0.0, "depth": 0.0}
@@ -48,15 +50,19 @@ class Parameter:
     Attributes
     ----------
     name : str
-        ``"conductivity[5,8]"`` or ``"depth[T3A]"``.
+        ``"conductivity[5,8]"``, ``"depth[T3A]"`` or ``"offset[T3A]"``.
     property : str
     layers : tuple of int
-        Layer indices sharing the value (empty for a probe parameter).
+        Layer indices sharing the value (empty for a probe or sensor parameter).
     probe : str or None
     base : float
         Base-case value (SI units of the property).
     lower, upper : float
         Absolute bounds.
+    sensor : str or None
+        The target sensor of an ``offset`` parameter: a correction [degC or W/m2] added to its
+        measured signal before it is compared with the model (the meaning of the sensor's own
+        ``offset`` key; the calibrated value adds to it).
     """
 
     name: str
@@ -66,6 +72,7 @@ class Parameter:
     base: float
     lower: float
     upper: float
+    sensor: str | None = None
 
     @property
     def span(self) -> float:
@@ -130,6 +137,24 @@ class ParameterSpace:
         """Layers whose contact resistance is a parameter (the grid needs a contact link there)."""
         return frozenset(i for p in self.parameters if p.property == "contact_resistance" for i in p.layers)
 
+    def offsets(self, X: np.ndarray) -> np.ndarray:
+        """Sensor offsets [degC or W/m2] per candidate and target, shape (n_candidates, n_targets): the
+        correction added to each target's measured signal (0 for targets without an ``offset`` parameter)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        out = np.zeros((X.shape[0], len(self.targets)))
+        for j, p in enumerate(self.parameters):
+            if p.sensor is not None and p.sensor in self.targets:
+                out[:, self.targets.index(p.sensor)] += X[:, j]
+        return out
+
+    def offset_values(self, x: np.ndarray) -> dict[str, float]:
+        """Sensor name -> calibrated offset [degC or W/m2] of the ``offset`` parameters at ``x``."""
+        return {
+            p.sensor: float(v)
+            for p, v in zip(self.parameters, np.asarray(x, dtype=float), strict=True)
+            if p.sensor is not None
+        }
+
     # ------------------------------------------------------------------ applying parameters
     def properties(self, wall: Wall, X: np.ndarray) -> tuple[PropertyArrays, dict[str, np.ndarray]]:
         """Property arrays of candidate walls and probe depths.
@@ -177,8 +202,11 @@ class ParameterSpace:
         return props, depths
 
     def wall_at(self, wall: Wall, x: np.ndarray) -> Wall:
-        """The wall with parameter values ``x`` applied (for writing and reporting)."""
+        """The wall with parameter values ``x`` applied (for writing and reporting; sensor offsets are no part
+        of the wall: :meth:`offset_values`)."""
         for p, v in zip(self.parameters, np.asarray(x, dtype=float), strict=True):
+            if p.sensor is not None:
+                continue
             if p.probe is not None:
                 wall = wall.replace_probe(p.probe, depth=float(v))
             else:
@@ -310,15 +338,18 @@ def parse_calibration(
     params: list[Parameter] = []
     used: set[tuple[str, str]] = set()  # (layer id or "probe:NAME", property): no property is a parameter twice
     for pt in t.tables("parameters", PARAMETER_KEYS, required=False):
-        got = _parse_parameter(pt, problems, wall)
+        got = _parse_parameter(pt, problems, wall, targets)
         if got is None:
             continue
         p, keys = got
         twice = [(k, key) for k, key in enumerate(keys) if (key, p.property) in used]
         for k, key in twice:
-            at, what = (
-                (pt.at("probe"), f"probe {p.probe!r}") if p.probe else (f"{pt.at('layers')}[{k}]", f"layer {key!r}")
-            )
+            if p.sensor:
+                at, what = pt.at("sensor"), f"sensor {p.sensor!r}"
+            elif p.probe:
+                at, what = pt.at("probe"), f"probe {p.probe!r}"
+            else:
+                at, what = f"{pt.at('layers')}[{k}]", f"layer {key!r}"
             problems.add(at, f"{what} {p.property} is already a parameter")
         used.update((key, p.property) for key in keys)
         if not twice:
@@ -340,13 +371,15 @@ def parse_calibration(
     )
 
 
-def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None):
-    """One ``[[calibration.parameters]]`` table: (Parameter, (layer ids or probe)) or None."""
-    has_layers, has_probe = pt.has("layers"), pt.has("probe")
-    if has_layers == has_probe:
+def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=()):
+    """One ``[[calibration.parameters]]`` table: (Parameter, (layer ids, probe or sensor)) or None."""
+    has_layers, has_probe, has_sensor = pt.has("layers"), pt.has("probe"), pt.has("sensor")
+    if has_layers + has_probe + has_sensor != 1:
         if pt.ok:
-            problems.add(pt.path, 'give either layers = [...] or probe = "..."')
+            problems.add(pt.path, 'give one of layers = [...], probe = "..." or sensor = "..."')
         return None
+    if has_sensor:
+        return _parse_offset(pt, problems, wall, targets)
     prop = pt.str("property", choices=PROBE_PROPERTIES if has_probe else LAYER_PROPERTIES)
     kind = pt.str("bounds_kind", "relative" if has_layers else "absolute", choices=("relative", "absolute"))
     bounds = pt.raw("bounds")
@@ -448,3 +481,37 @@ def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None):
         problems.add(pt.at("bounds"), f"{pname} upper bound {upper:g} m is beyond the wall ({wall.thickness:g} m)")
         return None
     return Parameter(pname, prop, idx, name if has_probe else None, base, lower, upper), keys
+
+
+def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets):
+    """A ``sensor = "..."``, ``property = "offset"`` table: a target sensor's offset [degC or W/m2], base 0,
+    absolute bounds around 0."""
+    prop = pt.str("property", choices=SENSOR_PROPERTIES)
+    kind = pt.str("bounds_kind", "absolute", choices=("absolute",))
+    name = pt.raw("sensor")
+    if not isinstance(name, str):
+        problems.add(pt.at("sensor"), f"must be a sensor name (a string), got {describe(name)}")
+        return None
+    bounds = pt.raw("bounds")
+    lo = hi = None
+    if not (isinstance(bounds, list) and len(bounds) == 2):
+        problems.add(pt.at("bounds"), "must be a pair [lower, upper]" + ("" if pt.has("bounds") else "; missing"))
+    else:
+        lo = check_number(bounds[0], pt.at("bounds") + "[0]", problems)
+        hi = check_number(bounds[1], pt.at("bounds") + "[1]", problems)
+        if lo is not None and hi is not None and not hi > lo:
+            problems.add(pt.at("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
+            lo = hi = None
+        elif lo is not None and hi is not None and not lo <= 0.0 <= hi:
+            problems.add(pt.at("bounds"), f"an offset's bounds must hold 0 (its base value), got [{lo:g}, {hi:g}]")
+            lo = hi = None
+    if name not in targets:
+        problems.add(
+            pt.at("sensor"),
+            f"{name!r} is not a target of the calibration (an offset acts on a target only); "
+            f"{closest(name, list(targets))}",
+        )
+        return None
+    if wall is None or prop is None or kind is None or lo is None or hi is None:
+        return None
+    return Parameter(f"offset[{name}]", prop, (), None, 0.0, float(lo), float(hi), sensor=name), ("sensor:" + name,)
