@@ -7,6 +7,7 @@ try:
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0+unknown"
 
+from .analysis.diagnose import diagnose  # noqa: E402  (cheap: the engine loads when it runs)
 from .errors import DataError, EngineError, StudyError, WallcalError  # noqa: E402
 from .retrofitting import retrofit  # noqa: E402  (cheap: pvlib and the engine load when it runs)
 from .simulation import SimulationResult, prepare, simulate  # noqa: E402
@@ -24,6 +25,7 @@ __all__ = [
     "Wall",
     "WallcalError",
     "__version__",
+    "diagnose",
     "dump_wall",
     "load_study",
     "load_wall",

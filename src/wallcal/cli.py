@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "wallcal.commands.standards",
     "wallcal.commands.energyplus",
     "wallcal.commands.analysis",
+    "wallcal.commands.diagnose",
     "wallcal.commands.retrofit",
     "wallcal.commands.building",
 )

@@ -1,0 +1,809 @@
+"""Let the data choose the model structure: ``wallcal diagnose``.
+
+Starting from a calibrated wall, :func:`diagnose` looks at the residuals of each target (bias, lag,
+daily pattern), proposes structural extensions of the calibration's parameter space -
+
+- ``depth[P]``: the depth of probe P (a sensor placed a few millimetres off its nominal depth),
+- ``contact_resistance[L]``: a contact resistance at each layer interface next to a target probe,
+- ``conductivity_temperature_coefficient[L...]``: lambda(T) of each insulation layer or tied group,
+- ``offset[S]``: a constant offset of target sensor S (its bias),
+
+and scores each, and each useful combination, by recalibrating warm-started from the calibrated point
+(bounded least squares; each Jacobian one engine batch). The score is the Bayesian information criterion
+on the AR(1) likelihood of the residuals (see :func:`ar1_loglike` and ``docs/identifiability.md``,
+"Choosing the model structure"):
+
+    BIC = -2 sum_k log L_k(AR(1), phi_k and sigma_k at their maximum) + p ln N
+
+with p the calibration parameters and N the residual pairs over all targets. An extension (or a set) is
+adopted when it lowers BIC by at least :data:`ADOPT_DELTA` (10: "very strong" evidence) against the
+structure adopted so far (forward selection). The extended study (:attr:`Diagnosis.study`) is the
+study with the adopted extensions added to its ``[calibration]`` table.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import StudyError, WallcalError
+
+__all__ = ["ADOPT_DELTA", "Diagnosis", "Extension", "ar1_loglike", "diagnose", "propose", "residual_analysis"]
+
+#: BIC decrease needed to adopt an extension (Kass and Raftery: > 10 is very strong evidence)
+ADOPT_DELTA = 10.0
+#: an insulation layer (candidate for lambda(T)) conducts less than this [W/(m K)]
+INSULATION_LAMBDA = 0.1
+#: half-range of a candidate probe depth [m]
+DEPTH_RANGE = 0.01
+#: bounds of a candidate contact resistance [m2K/W]
+CONTACT_BOUNDS = (0.0, 0.5)
+#: half-range of a candidate conductivity temperature coefficient around its base value [1/K]
+COEFFICIENT_RANGE = 0.02
+#: half-range of a candidate sensor offset, in units of the sensor's accuracy
+OFFSET_ACCURACIES = 2.0
+#: Jacobians allowed in each warm-started recalibration
+MAX_JACOBIANS = 8
+#: relative change of the least-squares cost that ends a recalibration (a BIC change of 1 is about 2 / N)
+FTOL = 1e-5
+#: after the single candidates, each forward step tries the best few useful ones only
+MAX_TRIALS = 3
+#: most extensions adopted together
+MAX_ADOPTED = 4
+CRITERION = "delta_bic"
+
+
+# ============================================================================ the criterion
+def ar1_loglike(e: np.ndarray, mask: np.ndarray) -> tuple[float, int, float]:
+    """Maximised conditional AR(1) Gaussian log-likelihood of one residual series.
+
+    The residuals e_t (zero mean: a bias is no part of the error model, so that it shows as misfit) follow
+    e_t = phi e_{t-1} + eta_t, eta ~ N(0, s^2). Conditioning on the first value of every gap-free run, the
+    log-likelihood over the m consecutive valid pairs, maximised over phi and s^2, is
+    -m/2 (ln(2 pi s^2) + 1) with phi = sum e_t e_{t-1} / sum e_{t-1}^2 and s^2 the mean squared innovation.
+
+    Parameters
+    ----------
+    e : ndarray, shape (n,)
+        Residuals [unit of the signal].
+    mask : ndarray of bool, shape (n,)
+        Valid samples.
+
+    Returns
+    -------
+    (log L, m, phi)
+    """
+    e = np.where(mask, e, 0.0)
+    pair = mask[1:] & mask[:-1]
+    m = int(pair.sum())
+    if m < 2:
+        return 0.0, 0, 0.0
+    a, b = e[1:][pair], e[:-1][pair]
+    den = float(np.sum(b * b))
+    phi = float(np.clip(np.sum(a * b) / den, -0.999, 0.999)) if den > 0 else 0.0
+    s2 = max(float(np.mean((a - phi * b) ** 2)), 1e-300)
+    return -0.5 * m * (math.log(2 * math.pi * s2) + 1.0), m, phi
+
+
+def criterion(E: np.ndarray, mask: np.ndarray, n_parameters: int) -> tuple[float, float, int]:
+    """(BIC, log L, N) of the residuals ``E`` (targets x times) of a model with ``n_parameters``."""
+    ll, n = 0.0, 0
+    for k in range(E.shape[0]):
+        lk, mk, _ = ar1_loglike(E[k], mask[k])
+        ll += lk
+        n += mk
+    return -2.0 * ll + n_parameters * math.log(max(n, 2)), ll, n
+
+
+# ============================================================================ residual analysis
+def residual_analysis(ev, x, times) -> pd.DataFrame:
+    """Bias, lag, daily pattern and autocorrelation of each target's residuals (simulated - measured) at ``x``.
+
+    Columns: ``rmse``, ``bias`` (mean residual), ``sd`` (about the bias), ``phi`` (lag-1 autocorrelation of
+    the de-meaned residuals), ``lag_min`` (the shift of the simulated series [min] that best matches the
+    measured one; positive: the model is late), ``daily_amplitude`` (peak-to-peak of the mean residual per
+    hour of the day) and ``daily_share`` (the part of the residual variance about the bias that the daily
+    pattern explains).
+    """
+    from .posterior import lag1
+
+    sim = ev.simulate(np.atleast_2d(x))[0]
+    y = ev.y + ev.space.offsets(np.atleast_2d(x))[0][:, None]
+    times = pd.DatetimeIndex(times)
+    step = float(np.median(np.diff(times.asi8))) / 1e9 if len(times) > 1 else 300.0
+    hours = times.hour.to_numpy()
+    rows = []
+    for k, name in enumerate(ev.space.targets):
+        m = ev.mask[k]
+        e = np.where(m, sim[k] - y[k], np.nan)
+        ev_ = e[m]
+        bias = float(np.mean(ev_))
+        d = np.where(m, e - bias, 0.0)
+        sd = float(np.std(ev_))
+        phi = lag1(d, m)
+        # lag: shift of the simulated series (up to 3 h) minimising the de-meaned squared difference
+        max_shift = int(min(3 * 3600 / step, len(e) // 4))
+        shifts = np.arange(-max_shift, max_shift + 1)
+        errs = np.full(len(shifts), np.inf)
+        for i, s in enumerate(shifts):
+            a = sim[k][max(0, s) : len(e) + min(0, s)]
+            b = y[k][max(0, -s) : len(e) - max(0, s)]
+            mm = m[max(0, -s) : len(e) - max(0, s)]
+            if mm.sum() < 10:
+                continue
+            diff = (a - b)[mm]
+            errs[i] = float(np.mean((diff - diff.mean()) ** 2))
+        i = int(np.argmin(errs))
+        best_s = float(shifts[i])
+        if 0 < i < len(shifts) - 1 and np.all(np.isfinite(errs[i - 1 : i + 2])):  # parabola through the minimum
+            den = errs[i - 1] - 2 * errs[i] + errs[i + 1]
+            if den > 0:
+                best_s += 0.5 * (errs[i - 1] - errs[i + 1]) / den
+        hourly = pd.Series(d[m]).groupby(hours[m]).mean()
+        amp = float(hourly.max() - hourly.min()) if len(hourly) else 0.0
+        var = float(np.mean(d[m] ** 2))
+        share = float(np.sum(hourly.reindex(hours[m]).to_numpy() ** 2) / (var * m.sum())) if var > 0 else 0.0
+        rows.append(
+            {
+                "target": name,
+                "rmse": float(np.sqrt(np.mean(ev_**2))),
+                "bias": bias,
+                "sd": sd,
+                "phi": phi,
+                "lag_min": best_s * step / 60.0 + 0.0,
+                "daily_amplitude": amp,
+                "daily_share": min(share, 1.0),
+            }
+        )
+    return pd.DataFrame(rows).set_index("target")
+
+
+# ============================================================================ candidates
+@dataclass(frozen=True)
+class Extension:
+    """One candidate extension of the parameter space.
+
+    Attributes
+    ----------
+    name : str
+        Its parameter name, e.g. ``"depth[T3A]"``.
+    kind : str
+        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient`` or ``offset``.
+    table : dict
+        Its ``[[calibration.parameters]]`` entry as written into the extended study.
+    reason : str
+        What in the residuals points to it, in words.
+    """
+
+    name: str
+    kind: str
+    table: dict
+    reason: str = ""
+
+
+def _fmt_unit(study, target) -> str:
+    return "W/m2" if study.sensor(target).quantity == "heat_flux" else "K"
+
+
+def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list[Extension]:
+    """Candidate extensions of ``space`` for ``study`` (those already in the space are left out).
+
+    Parameters
+    ----------
+    study : Study
+    space : ParameterSpace
+    residuals : DataFrame, optional
+        :func:`residual_analysis` at the calibrated point (for the reasons given).
+    y : dict, optional
+        Target -> valid measured samples (bounds of a relative-accuracy sensor's offset).
+    """
+    from .identifiability import sensor_sigma
+
+    wall = study.wall
+    have = set(space.names)
+    inter = wall.interfaces
+    ids = [layer.id for layer in wall.layers]
+    res = residuals if residuals is not None else pd.DataFrame()
+
+    def why(t, what):
+        if t not in res.index:
+            return what
+        r = res.loc[t]
+        u = _fmt_unit(study, t)
+        return (
+            f"{what}; {t}: bias {r['bias']:+.3g} {u}, lag {r['lag_min']:+.0f} min, daily pattern "
+            f"{r['daily_amplitude']:.3g} {u} peak to peak"
+        )
+
+    out: list[Extension] = []
+    probes = [t for t in space.targets if study.sensor(t).quantity == "temperature"]
+    for t in probes:
+        name = f"depth[{t}]"
+        if name in have:
+            continue
+        d = wall.probe(t).depth
+        lo, hi = max(0.0, d - DEPTH_RANGE), min(wall.thickness, d + DEPTH_RANGE)
+        out.append(
+            Extension(
+                name,
+                "depth",
+                {"probe": t, "property": "depth", "bounds": [round(lo, 9), round(hi, 9)], "bounds_kind": "absolute"},
+                why(t, f"probe {t} placed off its nominal depth {d:g} m"),
+            )
+        )
+    seen = set()
+    for t in probes:
+        d = wall.probe(t).depth
+        near = np.flatnonzero(np.isclose(inter, d, atol=1e-6, rtol=0))
+        if len(near):
+            faces = [int(near[0])]
+        else:
+            li = int(np.searchsorted(inter, d) - 1)
+            faces = [li, li + 1]
+        for f in faces:
+            if f <= 0 or f >= len(wall.layers) or f in seen:
+                continue  # the wall's faces have no contact resistance
+            seen.add(f)
+            li = f - 1  # the contact resistance belongs to the layer on the exterior side
+            name = f"contact_resistance[{ids[li]}]"
+            if name in have or any(p.property == "contact_resistance" and li in p.layers for p in space.parameters):
+                continue
+            out.append(
+                Extension(
+                    name,
+                    "contact_resistance",
+                    {
+                        "layers": [ids[li]],
+                        "property": "contact_resistance",
+                        "bounds": list(CONTACT_BOUNDS),
+                        "bounds_kind": "absolute",
+                    },
+                    why(t, f"a contact resistance between layers {ids[li]} and {ids[li + 1]}, next to probe {t}"),
+                )
+            )
+    # lambda(T): every insulation layer, grouped as the conductivity parameters group them
+    groups: list[tuple[int, ...]] = []
+    for p in space.parameters:
+        if p.property == "conductivity" and p.layers not in groups:
+            groups.append(p.layers)
+    for i in range(len(wall.layers)):
+        if not any(i in g for g in groups):
+            groups.append((i,))
+    taken = {i for p in space.parameters if p.property == "conductivity_temperature_coefficient" for i in p.layers}
+    for g in groups:
+        layers = [wall.layers[i] for i in g]
+        if any(
+            lay.is_massless
+            or lay.conductivity is None
+            or lay.conductivity >= INSULATION_LAMBDA
+            or lay.conductivity_table is not None
+            or i in taken
+            for i, lay in zip(g, layers, strict=True)
+        ):
+            continue
+        base = {lay.conductivity_temperature_coefficient for lay in layers}
+        if len(base) != 1:
+            continue
+        f0 = base.pop()
+        lab = ",".join(ids[i] for i in g)
+        out.append(
+            Extension(
+                f"conductivity_temperature_coefficient[{lab}]",
+                "conductivity_temperature_coefficient",
+                {
+                    "layers": [ids[i] for i in g],
+                    "property": "conductivity_temperature_coefficient",
+                    "bounds": [f0 - COEFFICIENT_RANGE, f0 + COEFFICIENT_RANGE],
+                    "bounds_kind": "absolute",
+                },
+                f"conductivity of insulation layer(s) {lab} depending on temperature (lambda(T))",
+            )
+        )
+    for t in space.targets:
+        name = f"offset[{t}]"
+        if name in have:
+            continue
+        yt = np.asarray((y or {}).get(t, [1.0]), dtype=float)
+        sig = sensor_sigma(study, t, yt)
+        if not np.isfinite(sig) or sig <= 0:
+            sig = 0.5 if study.sensor(t).quantity == "temperature" else 1.0
+        half = float(f"{OFFSET_ACCURACIES * sig:.3g}")
+        out.append(
+            Extension(
+                name,
+                "offset",
+                {"sensor": t, "property": "offset", "bounds": [-half, half]},
+                why(t, f"a constant offset of sensor {t}"),
+            )
+        )
+    return out
+
+
+# ============================================================================ the result
+@dataclass
+class Diagnosis:
+    """Outcome of :func:`diagnose`.
+
+    Attributes
+    ----------
+    adopted : list of str
+        Names of the adopted extensions ([] when the data support the study's structure).
+    candidates : DataFrame
+        One row per candidate or combination scored, the columns of ``candidates.csv``: ``extension``
+        (names joined by " + "), ``delta_bic`` (BIC change against the study's structure; negative: better),
+        ``RMSE <target>`` for every target [its unit], ``adopted`` (the row of the adopted set).
+    study : Study
+        The study with the adopted extensions added to its ``[calibration]`` table (loadable and runnable
+        like :func:`wallcal.load_study`'s; relative paths resolve against the original study's folder).
+    residuals : DataFrame
+        :func:`residual_analysis` at the calibrated point of the study's structure.
+    extensions : list of Extension
+        Every candidate proposed.
+    x : dict
+        Parameter name -> value [SI] at the recalibrated optimum of the adopted structure.
+    """
+
+    adopted: list
+    candidates: pd.DataFrame
+    study: object
+    residuals: pd.DataFrame
+    extensions: list
+    x: dict
+    base_study: object
+    rmse_base: dict
+    bic_base: float
+    n_pairs: int
+    evaluations: int = 0
+    seconds: float = 0.0
+    raw: dict = field(default_factory=dict, repr=False)
+    notes: list = field(default_factory=list)
+
+    # ------------------------------------------------------------------ words
+    def summary(self) -> str:
+        """Which structure the data support and by how much, in words."""
+        study = self.base_study
+        units = {t: _fmt_unit(study, t) for t in self.rmse_base}
+        c = self.candidates
+        lines = []
+        if self.adopted:
+            row = c[c["adopted"]].iloc[0]
+            rm = ", ".join(f"{t} {self.rmse_base[t]:.3f} -> {row[f'RMSE {t}']:.3f} {units[t]}" for t in self.rmse_base)
+            vals = ", ".join(f"{n} = {self.x[n]:.4g}" for n in self.adopted)
+            lines.append(
+                f"The data support extending the calibration with {' + '.join(self.adopted)}: BIC falls by "
+                f"{-row[CRITERION]:.1f} against the study's structure (adoption needs a fall of at least "
+                f"{ADOPT_DELTA:g}). RMSE {rm}. Recalibrated values: {vals}."
+            )
+        else:
+            lines.append(
+                f"The data support the study's structure: no candidate extension lowers BIC by {ADOPT_DELTA:g} or more."
+            )
+        rest = c[~c["adopted"] & ~c["extension"].str.contains(r" \+ ", regex=True)].sort_values(CRITERION)
+        if len(rest):
+            best = rest.iloc[0]
+            lines.append(
+                f"Best single candidate not adopted on its own: {best['extension']} (delta BIC "
+                f"{best[CRITERION]:+.1f}); {len(c)} candidates and combinations scored "
+                f"({self.evaluations} simulations, {self.seconds:.1f} s)."
+            )
+        r = self.residuals
+        feats = []
+        for t, row in r.iterrows():
+            feats.append(
+                f"{t}: RMSE {row['rmse']:.3f} {units.get(t, '')}, bias {row['bias']:+.3f}, lag {row['lag_min']:+.0f} "
+                f"min, daily pattern {row['daily_amplitude']:.3f} peak to peak ({100 * row['daily_share']:.0f} % of "
+                f"the variance), phi {row['phi']:.3f}"
+            )
+        lines.append("Residuals of the calibrated study structure: " + "; ".join(feats) + ".")
+        lines += self.notes
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        return {
+            "adopted": list(self.adopted),
+            "criterion": "BIC on the AR(1) likelihood of the residuals",
+            "adopt_delta": ADOPT_DELTA,
+            "bic_base": self.bic_base,
+            "residual_pairs": self.n_pairs,
+            "rmse_base": self.rmse_base,
+            "values": self.x,
+            "extensions": [
+                {"name": e.name, "kind": e.kind, "table": e.table, "reason": e.reason} for e in self.extensions
+            ],
+            "evaluations": self.evaluations,
+            "seconds": self.seconds,
+            "summary": self.summary(),
+        }
+
+    def study_toml(self, out_dir) -> str:
+        """The extended study as TOML, with every relative path rewritten to resolve from ``out_dir``."""
+        import tomli_w
+
+        raw = _relocate(self.raw, self.base_study, Path(out_dir))
+        src = self.base_study.path or "the study"
+        head = (
+            f"# wallcal diagnose: {src} with the adopted extensions "
+            f"({', '.join(self.adopted) if self.adopted else 'none'}) added to [calibration];\n"
+            "# relative paths point to the original study's files.\n"
+        )
+        return head + tomli_w.dumps(raw)
+
+    def write_into(self, d: Path) -> list[str]:
+        """Write ``candidates.csv``, ``study.toml``, ``residuals.csv`` and ``diagnose.json`` into ``d``."""
+        from ..study import load_study
+
+        d = Path(d)
+        self.candidates.to_csv(d / "candidates.csv", index=False, float_format="%.6g")
+        (d / "study.toml").write_text(self.study_toml(d))
+        self.residuals.to_csv(d / "residuals.csv", float_format="%.6g")
+        (d / "diagnose.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
+        load_study(d / "study.toml")  # the written study must load (relative paths resolve)
+        return ["candidates.csv", "study.toml", "residuals.csv", "diagnose.json"]
+
+    def write(self, out_dir) -> Path:
+        """Write every output atomically into ``out_dir`` (it appears only when complete)."""
+        from ..outputs import output_dir
+        from ..simulation import manifest_of
+
+        target = Path(out_dir).resolve()
+        with output_dir(target, manifest=manifest_of(self.base_study, "diagnose")) as tmp:
+            # tmp sits next to target: paths relative to target resolve from tmp too
+            self.write_into(Path(tmp))
+        return target
+
+
+def _relocate(raw: dict, study, out_dir: Path) -> dict:
+    """A copy of the study's TOML tables with every file path relative to the study made relative to
+    ``out_dir`` (data files, wall file, reference wall, a weather file next to the study)."""
+    raw = copy.deepcopy(raw)
+    base = Path(study.path).resolve().parent if study.path else Path.cwd()
+    out_dir = Path(out_dir).resolve()
+
+    def move(value):
+        if not isinstance(value, str) or Path(value).is_absolute():
+            return value
+        target = (base / value).resolve()
+        if os.path.commonpath([target, out_dir]) == os.path.sep:
+            return str(target)  # nothing in common but the root: an absolute path reads better
+        return os.path.relpath(target, out_dir)
+
+    wall = raw.get("wall")
+    if isinstance(wall, dict) and "file" in wall:
+        wall["file"] = move(wall["file"])
+    data = raw.get("data")
+    if isinstance(data, dict):
+        if "file" in data:
+            data["file"] = move(data["file"])
+        for f in data.get("files", []) or []:
+            if isinstance(f, dict) and "file" in f:
+                f["file"] = move(f["file"])
+    cal = raw.get("calibration")
+    if isinstance(cal, dict) and "reference_wall" in cal:
+        cal["reference_wall"] = move(cal["reference_wall"])
+    ret = raw.get("retrofit")
+    if isinstance(ret, dict) and isinstance(ret.get("weather"), str) and (base / ret["weather"]).is_file():
+        ret["weather"] = move(ret["weather"])
+    return raw
+
+
+# ============================================================================ the run
+def _values_from_wall(space, wall, study) -> np.ndarray:
+    ids = [layer.id for layer in study.wall.layers]
+    if [layer.id for layer in wall.layers] != ids:
+        raise WallcalError(
+            f"the starting wall's layers ({', '.join(layer.id for layer in wall.layers)}) are not the study's "
+            f"({', '.join(ids)})"
+        )
+    depths = {p.name: p.depth for p in wall.probes}
+    out = []
+    for p in space.parameters:
+        if p.sensor is not None:
+            out.append(0.0)
+        elif p.probe is not None:
+            out.append(depths.get(p.probe, p.base))
+        else:
+            v = getattr(wall.layers[p.layers[0]], p.property)
+            out.append(p.base if v is None else float(v))
+    return np.array(out, dtype=float)
+
+
+def start_point(study, space, start, progress) -> tuple[np.ndarray, str]:
+    """The calibrated parameter values [SI] to start from, and where they came from."""
+    from ..wall import Wall
+
+    if start is None:
+        from ..calibration import calibrate
+
+        res = calibrate(study, progress=progress is True, space=space)
+        return res.x_opt, f"calibrated now ({res.algorithm}, {res.evaluations} simulations)"
+    if hasattr(start, "x_opt") and hasattr(start, "space"):  # a CalibrationResult
+        vals = dict(zip(start.space.names, start.x_opt, strict=True))
+        x = np.array([vals.get(p.name, p.base) for p in space.parameters], dtype=float)
+        return x, "the calibration result given"
+    if isinstance(start, Wall):
+        return _values_from_wall(space, start, study), "the wall given"
+    path = Path(start)
+    if path.is_dir():
+        from . import load_optimum
+
+        return load_optimum(space, path), f"{path / 'calibration.json'}"
+    if path.is_file():
+        from ..study import load_wall
+
+        return _values_from_wall(space, load_wall(path), study), str(path)
+    raise WallcalError(f"--from {start}: no such calibration output directory or wall file")
+
+
+def refine(residuals, u0, max_jacobians: int = MAX_JACOBIANS, ftol: float = FTOL, h: float = 1e-6):
+    """Warm-started bounded Levenberg-Marquardt in the unit box; every engine call is one batch.
+
+    Each iteration runs one batch of n forward-difference runs (the Jacobian) and one batch of four trial
+    steps (damping lambda/10, lambda, 10 lambda, 100 lambda, each clipped to the box; parameters at a bound
+    whose gradient points out of the box stay there) and keeps the best trial. The normal equations are
+    n x n (no decomposition of the tall Jacobian).
+
+    Parameters
+    ----------
+    residuals : callable
+        ``residuals(U) -> R``, U shape (c, n) in unit coordinates, R shape (c, m).
+    u0 : ndarray, shape (n,)
+    max_jacobians : int
+    ftol : float
+        Stop when an accepted step lowers the cost by less than this fraction.
+
+    Returns
+    -------
+    (u, runs)
+        The best point and the number of simulations run.
+    """
+    u = np.clip(np.asarray(u0, dtype=float), 0.0, 1.0)
+    n = len(u)
+    r = residuals(u[None])[0]
+    cost = float(np.einsum("m,m->", r, r))
+    runs = 1
+    lam = 1e-3
+    for _ in range(max_jacobians):
+        step = np.where(u + h > 1.0, -h, h)
+        U = np.repeat(u[None], n, axis=0)
+        U[np.arange(n), np.arange(n)] += step
+        D = (residuals(U) - r[None]) / step[:, None]  # the Jacobian's transpose, (n, m)
+        runs += n
+        # einsum, not BLAS: on a shared machine a threaded BLAS product of this tall matrix can take 100x longer
+        A = np.einsum("im,jm->ij", D, D)
+        g = np.einsum("im,m->i", D, r)
+        free = ~(((u <= 0.0) & (g > 0)) | ((u >= 1.0) & (g < 0)))
+        if not free.any():
+            break
+        Af, gf = A[np.ix_(free, free)], g[free]
+        d = np.diag(Af).copy()
+        d[d <= 0] = 1.0
+        lams = lam * np.array([0.1, 1.0, 10.0, 100.0])
+        trials = []
+        for lm in lams:
+            try:
+                delta = np.linalg.solve(Af + lm * np.diag(d), -gf)
+            except np.linalg.LinAlgError:
+                delta = -gf / (d * (1 + lm))
+            ut = u.copy()
+            ut[free] = np.clip(u[free] + delta, 0.0, 1.0)
+            trials.append(ut)
+        T = np.array(trials)
+        R = residuals(T)
+        runs += len(T)
+        costs = np.einsum("cm,cm->c", R, R)
+        costs = np.where(np.isfinite(costs), costs, np.inf)
+        k = int(np.argmin(costs))
+        if not costs[k] < cost:
+            lam *= 1000.0
+            if lam > 1e10:
+                break
+            continue
+        gain = (cost - costs[k]) / cost if cost > 0 else 0.0
+        u, r, cost, lam = T[k], R[k], float(costs[k]), max(lams[k] / 3.0, 1e-9)
+        if gain < ftol:
+            break
+    return u, runs
+
+
+class _Say:
+    def __init__(self, progress):
+        from ..calibration.algorithms import Progress
+
+        self.fn = progress if callable(progress) else None
+        self.bar = Progress("diagnose", enabled=progress is True)
+
+    def __call__(self, text: str, force: bool = False):
+        if self.fn is not None:
+            self.fn(text)
+        self.bar.update(text, force=force)
+
+    def close(self, text: str):
+        if self.fn is not None:
+            self.fn(text)
+        self.bar.close(text)
+
+
+@dataclass
+class _Fit:
+    names: tuple
+    x: np.ndarray  # SI, of the space of this structure
+    space: object
+    bic: float
+    rmse: np.ndarray
+    ll: float
+
+
+def _extended_raw(study, tables: list[dict]) -> dict:
+    raw = copy.deepcopy(study.raw)
+    cal = raw.setdefault("calibration", {})
+    params = cal.get("parameters")
+    cal["parameters"] = list(params or []) + [copy.deepcopy(t) for t in tables]
+    return raw
+
+
+def diagnose(
+    study,
+    *,
+    start=None,
+    progress: bool | Callable[[str], None] | None = None,
+    prepared=None,
+    max_jacobians: int = MAX_JACOBIANS,
+    max_adopted: int = MAX_ADOPTED,
+    kinds: tuple[str, ...] | None = None,
+) -> Diagnosis:
+    """Which extensions of the calibration's structure the data support.
+
+    Parameters
+    ----------
+    study : Study
+        With a ``[calibration]`` table.
+    start : path, Wall or CalibrationResult, optional
+        The calibrated point: a ``wallcal calibrate`` output directory (its ``calibration.json``), a wall
+        file or :class:`~wallcal.wall.Wall`, or a calibration result. None: calibrate the study first.
+    progress : bool or callable, optional
+        True: a progress line on stderr; a callable receives each progress message; None/False: quiet.
+    prepared : Prepared, optional
+        The study's data prepared for batches (:func:`wallcal.simulation.prepare`).
+    max_jacobians : int
+        Jacobians allowed in each warm-started recalibration.
+    max_adopted : int
+        Most extensions adopted together.
+    kinds : tuple of str, optional
+        Candidate kinds to consider (default all: depth, contact_resistance,
+        conductivity_temperature_coefficient, offset).
+
+    Returns
+    -------
+    Diagnosis
+
+    Raises
+    ------
+    StudyError, WallcalError
+        The study has no ``[calibration]`` table, the start does not fit the study, ...
+    """
+    from ..calibration.objective import Evaluator
+    from ..calibration.space import parse_space, space_of
+    from ..simulation import BATCH_NEEDS, prepare
+    from ..study import parse_study
+
+    t0 = time.perf_counter()
+    space = space_of(study)
+    all_kinds = ("depth", "contact_resistance", "conductivity_temperature_coefficient", "offset")
+    if kinds is not None:
+        bad = [k for k in kinds if k not in all_kinds]
+        if bad:
+            raise StudyError([f"kinds: unknown extension kind(s) {', '.join(map(repr, bad))}; valid: {all_kinds}"])
+    say = _Say(progress)
+    prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the structure diagnosis")
+    x0, origin = start_point(study, space, start, progress)
+    x0 = np.clip(np.asarray(x0, dtype=float), space.lower, space.upper)
+    evaluations = 0
+    evaluators: dict[tuple, Evaluator] = {}
+
+    def evaluator(sp):
+        key = tuple(sp.names)
+        if key not in evaluators:
+            evaluators[key] = Evaluator(prepared, sp)
+        return evaluators[key]
+
+    def fit(tables: list[dict], names: tuple, x_start: dict) -> _Fit:
+        nonlocal evaluations
+        sp = space if not tables else parse_space(study, _extended_raw(study, tables)["calibration"])
+        ev = evaluator(sp)
+        xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
+        xs = np.clip(xs, sp.lower, sp.upper)
+        u, n_runs = refine(lambda U: ev.residuals(sp.from_unit(U)), sp.to_unit(xs), max_jacobians, FTOL)
+        x = sp.from_unit(u)
+        E = ev.errors(x[None])[0]
+        evaluations += n_runs + 1
+        bic, ll, _ = criterion(E, ev.mask, sp.n)
+        rmse = np.sqrt(np.einsum("tk,tk->t", E, E) / ev.n_valid)
+        return _Fit(names, x, sp, bic, rmse, ll)
+
+    say("recalibrating the study's structure (warm start)", force=True)
+    base = fit([], (), dict(zip(space.names, x0, strict=True)))
+    ev0 = evaluator(space)
+    E0 = ev0.errors(base.x[None])[0]
+    _, _, n_pairs = criterion(E0, ev0.mask, space.n)
+    resid = residual_analysis(ev0, base.x, prepared.times)
+    y = {t: ev0.y[k][ev0.mask[k]] for k, t in enumerate(space.targets)}
+    exts = [e for e in propose(study, space, resid, y) if kinds is None or e.kind in kinds]
+    by_name = {e.name: e for e in exts}
+    fits: dict[tuple, _Fit] = {}
+
+    def score(names: tuple, warm: _Fit) -> _Fit:
+        key = tuple(sorted(names))
+        if key not in fits:
+            say(f"scoring {' + '.join(names)} ({len(fits) + 1} scored, {evaluations} simulations)")
+            fits[key] = fit([by_name[n].table for n in names], names, dict(zip(warm.space.names, warm.x, strict=True)))
+        return fits[key]
+
+    singles = {e.name: score((e.name,), base) for e in exts}
+    useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
+    current = base
+    adopted: tuple = ()
+    while len(adopted) < max_adopted:
+        if not adopted:
+            trials = [singles[n] for n in useful]
+        else:
+            trials = [score(adopted + (n,), current) for n in [n for n in useful if n not in adopted][:MAX_TRIALS]]
+        if not trials:
+            break
+        best = min(trials, key=lambda f: f.bic)
+        if best.bic > current.bic - ADOPT_DELTA:
+            break
+        current = best
+        adopted = best.names
+    rows = []
+    for key, f in fits.items():
+        rows.append(
+            {
+                "extension": " + ".join(f.names),
+                CRITERION: f.bic - base.bic,
+                **{f"RMSE {t}": float(r) for t, r in zip(space.targets, f.rmse, strict=True)},
+                "adopted": bool(adopted) and key == tuple(sorted(adopted)),
+            }
+        )
+    cols = ["extension", CRITERION] + [f"RMSE {t}" for t in space.targets] + ["adopted"]
+    cand = pd.DataFrame(rows, columns=cols)
+    if len(cand):
+        cand["n"] = cand["extension"].str.count(r" \+ ")
+        cand = cand.sort_values(["n", CRITERION], kind="stable").drop(columns="n").reset_index(drop=True)
+    cand["adopted"] = cand["adopted"].astype(bool)
+    raw = _extended_raw(study, [by_name[n].table for n in adopted]) if adopted else copy.deepcopy(study.raw)
+    base_dir = Path(study.path).resolve().parent if study.path else None
+    ext_study = parse_study(raw, base_dir=base_dir, source=str(study.path) if study.path else None)
+    ext_study = ext_study.replace(path=study.path)
+    seconds = time.perf_counter() - t0
+    say.close(
+        f"{len(fits)} candidates and combinations scored, {evaluations} simulations, {seconds:.1f} s; adopted: "
+        + (", ".join(adopted) if adopted else "none")
+    )
+    notes = [f"Started from {origin}."]
+    if prepared.note:
+        notes.append(prepared.note)
+    return Diagnosis(
+        adopted=list(adopted),
+        candidates=cand,
+        study=ext_study,
+        residuals=resid,
+        extensions=exts,
+        x=dict(zip(current.space.names, map(float, current.x), strict=True)),
+        base_study=study,
+        rmse_base=dict(zip(space.targets, map(float, base.rmse), strict=True)),
+        bic_base=base.bic,
+        n_pairs=n_pairs,
+        evaluations=evaluations,
+        seconds=seconds,
+        raw=raw,
+        notes=notes,
+    )

@@ -1,0 +1,274 @@
+"""``wallcal diagnose``: the sensor-offset parameter kind, the AR(1) criterion, and the structure the data choose
+on synthetic campaigns with a known wall (a probe offset: its depth is adopted; no structure error: nothing)."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import tomllib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import EXAMPLE
+from synthetic_campaign import make_campaign
+from wallcal import StudyError, load_study
+from wallcal.analysis.diagnose import ADOPT_DELTA, ar1_loglike, diagnose, propose, refine
+from wallcal.calibration import calibrate
+from wallcal.calibration.objective import Evaluator
+from wallcal.cli import main
+from wallcal.simulation import BATCH_NEEDS, prepare
+from wallcal.study import parse_study
+
+TRUE_LAMBDA = {"3": 0.043, "5": 0.037, "8": 0.037, "7": 0.045}
+
+
+# ============================================================================ the offset parameter kind
+def _with_params(raw, *params):
+    r = copy.deepcopy(raw)
+    r["calibration"]["parameters"] = list(r["calibration"]["parameters"]) + list(params)
+    return r
+
+
+@pytest.fixture(scope="module")
+def raw():
+    return tomllib.loads(EXAMPLE.read_text())
+
+
+def test_offset_parameter_parsed(raw):
+    st = parse_study(_with_params(raw, {"sensor": "T1A", "property": "offset", "bounds": [-1.0, 0.5]}), EXAMPLE.parent)
+    p = st.calibration.parameters[-1]
+    assert (p.name, p.property, p.sensor, p.probe, p.layers) == ("offset[T1A]", "offset", "T1A", None, ())
+    assert (p.base, p.lower, p.upper) == (0.0, -1.0, 0.5)
+    assert st.calibration.offset_values(np.r_[st.calibration.base[:-1], 0.25]) == {"T1A": 0.25}
+    # the wall does not change with an offset
+    assert st.calibration.wall_at(st.wall, np.r_[st.calibration.base[:-1], 0.25]) == st.wall
+
+
+@pytest.mark.parametrize(
+    ("param", "message"),
+    [
+        ({"sensor": "qe", "property": "offset", "bounds": [-1, 1]}, "'qe' is not a target of the calibration"),
+        ({"sensor": "T1A", "property": "offset", "bounds": [0.1, 1]}, "must hold 0"),
+        ({"sensor": "T1A", "property": "depth", "bounds": [-1, 1]}, "property"),
+        ({"sensor": "T1A", "property": "offset", "bounds": [-1, 1], "bounds_kind": "relative"}, "bounds_kind"),
+        ({"sensor": "T1A", "probe": "T1A", "property": "offset", "bounds": [-1, 1]}, "give one of layers"),
+    ],
+)
+def test_offset_parameter_problems(raw, param, message):
+    with pytest.raises(StudyError) as exc:
+        parse_study(_with_params(raw, param), EXAMPLE.parent)
+    assert any(message in p and "calibration.parameters[18]" in p for p in exc.value.problems), exc.value.problems
+
+
+def test_offset_twice_is_a_problem(raw):
+    p = {"sensor": "T1A", "property": "offset", "bounds": [-1, 1]}
+    with pytest.raises(StudyError, match="sensor 'T1A' offset is already a parameter"):
+        parse_study(_with_params(raw, p, p), EXAMPLE.parent)
+
+
+def test_offset_shifts_the_measured_signal(raw):
+    """errors(x) = simulated - (measured + offset) for the offset's target only; other targets unchanged."""
+    st = parse_study(_with_params(raw, {"sensor": "T2A", "property": "offset", "bounds": [-1, 1]}), EXAMPLE.parent)
+    st = st.replace(path=EXAMPLE)
+    prep = prepare(st, needs=BATCH_NEEDS)
+    ev = Evaluator(prep, st.calibration)
+    x0 = st.calibration.base
+    x1 = x0.copy()
+    x1[-1] = 0.3
+    e0, e1 = ev.errors(np.array([x0, x1]))
+    m = ev.mask
+    assert np.allclose(e1[1][m[1]], e0[1][m[1]] - 0.3, atol=1e-12)
+    assert np.array_equal(e1[[0, 2]], e0[[0, 2]])
+
+
+# ============================================================================ the criterion and the optimiser
+def test_ar1_loglike_by_hand():
+    e = np.array([0.3, 0.1, -0.2, 0.05, 0.4, np.nan, 0.2, 0.1])
+    mask = np.isfinite(e)
+    pairs = [(0.1, 0.3), (-0.2, 0.1), (0.05, -0.2), (0.4, 0.05), (0.1, 0.2)]  # the gap breaks (0.4) -> (0.2)
+    a = np.array([p[0] for p in pairs])
+    b = np.array([p[1] for p in pairs])
+    phi = (a @ b) / (b @ b)
+    s2 = np.mean((a - phi * b) ** 2)
+    ll, m, ph = ar1_loglike(np.nan_to_num(e), mask)
+    assert m == 5 and ph == pytest.approx(phi)
+    assert ll == pytest.approx(-0.5 * 5 * (math.log(2 * math.pi * s2) + 1))
+
+
+def test_refine_finds_a_bounded_least_squares_optimum():
+    """A linear model with its optimum outside the box on one parameter: that parameter ends at its bound, the
+    other at the constrained optimum."""
+    t = np.linspace(0, 1, 200)
+    y = 1.4 * t + 0.3 * t**2
+
+    def residuals(U):
+        return U[:, :1] * t[None] + U[:, 1:2] * t[None] ** 2 - y[None]
+
+    u, runs = refine(residuals, np.array([0.5, 0.5]), max_jacobians=20, ftol=1e-12)
+    assert u[0] == 1.0
+    # with a = 1: minimise ||(t + b t^2) - y|| over b: b = <t^2, y - t> / <t^2, t^2>
+    b = (t**2 @ (y - t)) / (t**2 @ t**2)
+    assert u[1] == pytest.approx(b, abs=1e-6)
+    assert runs > 3
+
+
+# ============================================================================ synthetic campaigns
+@pytest.fixture(scope="module")
+def probe_campaign(tmp_path_factory):
+    return make_campaign(tmp_path_factory.mktemp("probe"), probe_depths={"T3A": 0.094}, conductivity=TRUE_LAMBDA)
+
+
+@pytest.fixture(scope="module")
+def null_campaign(tmp_path_factory):
+    return make_campaign(tmp_path_factory.mktemp("null"), conductivity=TRUE_LAMBDA)
+
+
+def test_candidates_proposed(null_campaign):
+    st = load_study(null_campaign)
+    names = [e.name for e in propose(st, st.calibration)]
+    assert names == [
+        "depth[T3A]",
+        "depth[T2A]",
+        "depth[T1A]",
+        "contact_resistance[3]",  # T3A sits at 3|4, T2A at 5|6, T1A at 7|8
+        "contact_resistance[5]",
+        "contact_resistance[7]",
+        "conductivity_temperature_coefficient[3]",  # insulation groups as the space ties them
+        "conductivity_temperature_coefficient[5,8]",
+        "conductivity_temperature_coefficient[7]",
+        "offset[T3A]",
+        "offset[T2A]",
+        "offset[T1A]",
+    ]
+
+
+def test_probe_offset_gets_the_depth_adopted(probe_campaign, tmp_path):
+    st = load_study(probe_campaign)
+    d = diagnose(st)
+    assert d.adopted == ["depth[T3A]"]
+    assert d.x["depth[T3A]"] == pytest.approx(0.094, abs=5e-4)
+    c = d.candidates
+    assert list(c.columns) == ["extension", "delta_bic", "RMSE T3A", "RMSE T2A", "RMSE T1A", "adopted"]
+    row = c[c["adopted"]]
+    assert list(row["extension"]) == ["depth[T3A]"] and float(row["delta_bic"].iloc[0]) < -ADOPT_DELTA
+    assert float(row["RMSE T3A"].iloc[0]) < 0.06  # the noise (0.05 K), from 0.39 K without the depth
+    assert d.rmse_base["T3A"] > 0.2
+    assert d.residuals.loc["T3A", "daily_share"] > 0.5  # the probe error shows as a daily pattern
+    # the extended study: the depth is a calibration parameter, and it calibrates
+    assert "depth[T3A]" in d.study.calibration.names
+    out = tmp_path / "out"
+    d.write(out)
+    assert sorted(p.name for p in out.iterdir()) == [
+        "candidates.csv",
+        "diagnose.json",
+        "manifest.json",
+        "residuals.csv",
+        "study.toml",
+    ]
+    back = pd.read_csv(out / "candidates.csv")
+    assert list(back.columns) == list(c.columns) and len(back) == len(c)
+    ext = load_study(out / "study.toml")
+    assert ext.calibration.names == d.study.calibration.names
+    assert ext.data.file.resolve() == st.data.file.resolve()
+    res = calibrate(ext, progress=False, settings={"particles": 6, "generations": 3})
+    assert res.space.names[-1] == "depth[T3A]"
+    assert res.metrics.set_index(["case", "signal"]).loc[("calibrated", "T3A"), "rmse"] < 0.1
+    assert "depth[T3A]" in d.summary() and "support" in d.summary()
+
+
+def test_no_structure_error_adopts_nothing(null_campaign, tmp_path):
+    st = load_study(null_campaign)
+    msgs = []
+    d = diagnose(st, progress=msgs.append)
+    assert d.adopted == []
+    assert not d.candidates["adopted"].any()
+    assert len(d.candidates) == 12  # the single candidates; no combination is useful
+    assert (d.candidates["delta_bic"] > -ADOPT_DELTA).all()
+    assert d.study.calibration.names == st.calibration.names
+    assert "support the study's structure" in d.summary()
+    assert any("scoring" in m for m in msgs)
+    # from a calibration output directory: the same answer
+    cal = tmp_path / "cal"
+    calibrate(st, progress=False).write(cal)
+    d2 = diagnose(st, start=cal, kinds=("offset",))
+    assert d2.adopted == [] and len(d2.candidates) == 3
+
+
+# ============================================================================ the command
+def test_cli_diagnose(probe_campaign, tmp_path, capsys):
+    out = tmp_path / "diag"
+    assert main(["diagnose", str(probe_campaign), "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "depth[T3A]" in text and "The data support extending the calibration with depth[T3A]" in text
+    cand = pd.read_csv(out / "candidates.csv")
+    assert cand.loc[cand["adopted"], "extension"].tolist() == ["depth[T3A]"]
+    info = json.loads((out / "diagnose.json").read_text())
+    assert info["adopted"] == ["depth[T3A]"]
+
+
+def test_cli_bad_input(tmp_path, probe_campaign, capsys):
+    out = tmp_path / "out"
+    # a --from that does not exist
+    assert main(["diagnose", str(probe_campaign), "--from", str(tmp_path / "nope"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--from" in err[0] and "nope" in err[0]
+    # a calibration output of another parameter space
+    other = tmp_path / "cal"
+    other.mkdir()
+    (other / "calibration.json").write_text(json.dumps({"parameters": [{"name": "density[3]", "optimum": 1.0}]}))
+    assert main(["diagnose", str(probe_campaign), "--from", str(other), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another parameter space" in err[0]
+    # a study without [calibration]
+    raw = tomllib.loads(probe_campaign.read_text())
+    del raw["calibration"]
+    import tomli_w
+
+    bad = probe_campaign.parent / "no_calibration.toml"
+    bad.write_text(tomli_w.dumps(raw))
+    assert main(["diagnose", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "[calibration]" in err[0]
+    # a missing study
+    assert main(["diagnose", str(tmp_path / "missing.toml"), "--out", str(out)]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert not out.exists() and not any(p.name.startswith(".out") for p in tmp_path.iterdir())
+
+
+def test_unknown_kind(null_campaign):
+    with pytest.raises(StudyError, match="unknown extension kind"):
+        diagnose(load_study(null_campaign), kinds=("depth", "gap"))
+
+
+def test_extended_study_paths_resolve_from_elsewhere(probe_campaign, tmp_path):
+    """OUT/study.toml in another folder: data file and every relative path still resolve."""
+    st = load_study(probe_campaign)
+    d = diagnose(st, start=st.wall, kinds=("depth",))
+    out = tmp_path / "deep" / "er" / "out"
+    d.write(out)
+    text = (out / "study.toml").read_text()
+    assert 'file = "../../../' in text
+    ext = load_study(out / "study.toml")
+    assert ext.data.file.resolve() == st.data.file.resolve()
+
+
+def test_calibrated_offset_cancels_a_sensor_bias(null_campaign, tmp_path):
+    """A +0.3 K bias put on T1A (its declared offset) is found by an offset parameter (-0.3 K), and the calibrated
+    metrics use the corrected signal."""
+    raw = tomllib.loads(null_campaign.read_text())
+    raw["sensors"][2]["offset"] = 0.3
+    raw["calibration"]["parameters"].append({"sensor": "T1A", "property": "offset", "bounds": [-1.0, 1.0]})
+    import tomli_w
+
+    path = null_campaign.parent / "biased.toml"
+    path.write_text(tomli_w.dumps(raw))
+    st = load_study(path)
+    res = calibrate(st, progress=False, algorithm="least-squares")
+    assert res.x_opt[-1] == pytest.approx(-0.3, abs=0.01)
+    rm = res.metrics.set_index(["case", "signal"])["rmse"]
+    assert rm[("base", "T1A")] > 0.25
+    assert rm[("calibrated", "T1A")] < 0.06
+    assert any("calibrated sensor offsets" in n and "T1A -0." in n for n in res.notes)
