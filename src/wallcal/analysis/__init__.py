@@ -59,16 +59,14 @@ def load_optimum(space, from_dir) -> np.ndarray:
 def reference_values(study, space) -> np.ndarray | None:
     """Parameter values [SI] of the study's ``calibration.reference_wall`` (the true wall of a synthetic campaign).
 
-    Returns None when the study names no reference wall.
+    Returns None when the study names no reference wall. A probe the reference wall does not list keeps its
+    base depth; a layer property it leaves unset (a contact resistance, a temperature coefficient) is its default.
     """
     if not space.reference_wall:
         return None
     from ..study import load_wall
 
-    ref_path = Path(space.reference_wall)
-    if not ref_path.is_absolute() and study.path is not None:
-        ref_path = Path(study.path).parent / ref_path
-    ref = load_wall(ref_path)
+    ref = load_wall(Path(space.reference_wall))  # resolved against the study's folder when the study was loaded
     out = []
     for p in space.parameters:
         if p.sensor is not None:
