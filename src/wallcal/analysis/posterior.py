@@ -13,6 +13,18 @@ autocorrelation of the residuals at the starting point (the calibrated optimum);
 sigma_k is either the RMSE of those residuals (``sigma="estimated"``, default: it
 includes model error) or the sensor's stated accuracy (``sigma="accuracy"``).
 
+When the residuals carry more than the AR(1) model expects (a model error: smooth, correlated across
+targets and over a day), the likelihood is tempered, L^w with 0 < w <= 1, by the sandwich rule
+(:func:`sandwich_weight`): w is the inverse of the mean variance inflation of the score that a
+heteroskedasticity-and-autocorrelation-consistent (Newey-West, one-day window) estimate finds over the
+identifiable directions. Under a correct error model w = 1 (within its sampling error, capped at 1).
+
+The posterior checks itself (:func:`residual_checks`, :func:`structure_verdict`): posterior predictive
+residuals against the sensors' stated accuracy, posterior mass piled up at the edges of the prior box, and
+(when given) the extensions that ``wallcal diagnose`` found the data support but the sampled structure lacks.
+When any of them fires, the report says plainly that the intervals are conditional on a structure the data
+reject.
+
 Priors are uniform on the calibration bounds; sampling happens in the unit box
 (the prior is flat there). emcee runs with ``vectorize=True``: each half-step of the
 ensemble is one engine batch. The chain is checkpointed atomically (``.npz``) every
@@ -46,10 +58,15 @@ class AR1Likelihood:
     ev : Evaluator
     sigma, phi : ndarray, shape (n_targets,)
         Marginal error sd [target unit] and lag-1 autocorrelation [-].
+    bias_sd : ndarray, shape (n_targets,), optional
+        Sd of a constant sensor bias integrated out [target unit].
+    weight : float
+        Power w of the tempered likelihood L^w [-] (1: untempered).
     """
 
-    def __init__(self, ev, sigma, phi, bias_sd=None):
+    def __init__(self, ev, sigma, phi, bias_sd=None, weight: float = 1.0):
         self.ev = ev
+        self.weight = float(weight)
         self.sigma = np.asarray(sigma, dtype=float)
         self.phi = np.asarray(phi, dtype=float)
         self.tau = np.zeros_like(self.sigma) if bias_sd is None else np.asarray(bias_sd, dtype=float)
@@ -84,7 +101,7 @@ class AR1Likelihood:
         inside = np.all((U >= 0) & (U <= 1), axis=1)
         if inside.any():
             E = self.ev.errors(self.ev.space.from_unit(U[inside]))
-            ll = self.loglike_errors(E)
+            ll = self.weight * self.loglike_errors(E)
             out[inside] = np.where(np.isfinite(ll), ll, -np.inf)
         self.calls += 1
         return out
@@ -95,6 +112,275 @@ def lag1(e: np.ndarray, mask: np.ndarray) -> float:
     p = mask[1:] & mask[:-1]
     den = float(np.sum(np.where(mask, e, 0.0) ** 2))
     return float(np.clip(np.sum(np.where(p, e[1:] * e[:-1], 0.0)) / den, 0.0, 0.995)) if den > 0 else 0.0
+
+
+# ============================================================================ tempering
+def whiten(x: np.ndarray, mask: np.ndarray, phi: float, sigma: float) -> np.ndarray:
+    """AR(1) innovations of series ``x`` (last axis time), scaled to unit variance: (x_t - phi x_(t-1)) /
+    (sigma sqrt(1 - phi^2)) within a run of valid samples, x_t / sigma at the start of each run, 0 at missing
+    samples. The sum of their squares is the AR(1) quadratic form of :class:`AR1Likelihood`."""
+    x = np.asarray(x, dtype=float)
+    pairs = mask[1:] & mask[:-1]
+    starts = mask & ~np.concatenate([[False], mask[:-1]])
+    out = np.zeros_like(x)
+    out[..., 1:] = np.where(pairs, (x[..., 1:] - phi * x[..., :-1]) / (sigma * np.sqrt(1.0 - phi**2)), 0.0)
+    out = np.where(starts, x / sigma, out)
+    return out
+
+
+def hac(S: np.ndarray, bandwidth: int) -> np.ndarray:
+    """Newey-West (Bartlett kernel) long-run covariance sum_l (1 - l/(L+1)) (G_l + G_l') of the score
+    contributions ``S``, shape (n, times) [their unit squared]; G_l = sum_t s_t s_(t-l)'."""
+    J = S @ S.T
+    for lag in range(1, int(bandwidth) + 1):
+        G = S[:, lag:] @ S[:, :-lag].T
+        J += (1.0 - lag / (bandwidth + 1.0)) * (G + G.T)
+    return J
+
+
+def sandwich_inflation(G: np.ndarray, r: np.ndarray, bandwidth: int, rtol: float = 1e-8) -> tuple[float, int]:
+    """Mean variance inflation of a least-squares score under correlated errors.
+
+    Parameters
+    ----------
+    G : ndarray, shape (n, targets, times)
+        Whitened sensitivities of the residuals to the parameters (each series through :func:`whiten`).
+    r : ndarray, shape (targets, times)
+        Whitened residuals at the optimum.
+    bandwidth : int
+        Newey-West window L [samples], at most a quarter of the record.
+    rtol : float
+        Directions whose information is below ``rtol`` x the largest are structural null directions, left out.
+
+    Returns
+    -------
+    inflation : float
+        tr(H^-1 J) / k over the k identifiable directions, H = sum G G' (the information the AR(1) likelihood
+        assumes) and J the Newey-West covariance of the score contributions s_t = sum_targets G_t r_t (the
+        variance the residuals actually show), divided by 1 - b + b^2/3 (b = L / T): the expectation of a
+        Bartlett estimate from the residuals of a fitted model over a window that is a fixed fraction b of the
+        record (Kiefer and Vogelsang 2005). About 1 when the whitened residuals are white noise of unit variance.
+    k : int
+    """
+    H = np.einsum("iks,jks->ij", G, G)
+    S = np.einsum("iks,ks->is", G, r)
+    lam, V = np.linalg.eigh(H)
+    keep = lam > rtol * max(float(lam.max()), 1e-300)
+    if not keep.any():
+        return 1.0, 0, 0
+    W = V[:, keep] / np.sqrt(lam[keep])[None]
+    Sw = W.T @ S  # score contributions along the identifiable directions, unit information each
+    bandwidth = max(0, min(int(bandwidth), S.shape[1] // 4))
+    b = bandwidth / S.shape[1]
+    M = hac(Sw, bandwidth) / (1.0 - b + b**2 / 3.0)
+    return float(np.trace(M) / keep.sum()), int(keep.sum())
+
+
+def sandwich_weight(ev, space, x_start, sigma, phi, *, h: float = 1e-3, bandwidth: int | None = None) -> dict:
+    """Power w of the tempered likelihood, from the residuals at ``x_start`` (the optimum).
+
+    The AR(1) likelihood assumes that its whitened residuals are independent with unit variance; its curvature
+    H is then the variance of its score. A model error makes the whitened residuals correlated (over a day, and
+    across targets at the same time), so the score varies more: J > H, and the posterior (curvature H) is too
+    narrow by the factor of the sandwich covariance H^-1 J H^-1 against H^-1. A power posterior L^w with
+    w = k / tr(H^-1 J) matches the sandwich on average over the k identifiable directions (w <= 1 is kept: the
+    data never sharpen the posterior beyond the AR(1) model).
+
+    Parameters
+    ----------
+    ev : Evaluator
+    space : ParameterSpace
+    x_start : ndarray
+        [SI]
+    sigma, phi : dict
+        Per target, as used by the likelihood.
+    h : float
+        Central-difference step in unit coordinates (one-sided at a bound); one batch of 2n + 1 runs.
+    bandwidth : int, optional
+        Newey-West window [samples]; default one day (the period of the forcing: a model error repeats from one
+        day to the next), at most a quarter of the record.
+
+    Returns
+    -------
+    dict
+        ``weight`` w, ``inflation`` tr(H^-1 J)/k, ``directions`` k, ``bandwidth`` [samples], ``window_s`` [s].
+    """
+    n = space.n
+    u0 = space.to_unit(np.asarray(x_start, dtype=float))
+    up = np.clip(u0[None] + h * np.eye(n), 0.0, 1.0)
+    um = np.clip(u0[None] - h * np.eye(n), 0.0, 1.0)
+    E = ev.errors(space.from_unit(np.vstack([u0[None], up, um])))
+    step = (up - um)[np.arange(n), np.arange(n)]
+    D = (E[1 : n + 1] - E[n + 1 :]) / step[:, None, None]
+    dt = _sample_interval(ev)
+    if bandwidth is None:
+        bandwidth = int(round(86400.0 / dt)) if np.isfinite(dt) and dt > 0 else ev.mask.shape[1] // 8
+    bandwidth = max(1, min(int(bandwidth), ev.mask.shape[1] // 4))
+    G = np.zeros_like(D)
+    r = np.zeros(E.shape[1:])
+    for k, t in enumerate(space.targets):
+        m = ev.mask[k]
+        e = np.where(m, E[0, k] - E[0, k][m].mean(), 0.0)  # the constant part is the sensor bias
+        d = np.where(m[None], D[:, k] - D[:, k][:, m].mean(axis=1, keepdims=True), 0.0)
+        r[k] = whiten(e, m, phi[t], sigma[t])
+        G[:, k] = whiten(d, m, phi[t], sigma[t])
+    inflation, k = sandwich_inflation(G, r, bandwidth)
+    return {
+        "weight": float(min(1.0, 1.0 / inflation)) if inflation > 0 else 1.0,
+        "inflation": inflation,
+        "directions": k,
+        "bandwidth": bandwidth,
+        "window_s": bandwidth * dt,
+    }
+
+
+def _sample_interval(ev) -> float:
+    """Median interval between the measured samples [s] (nan when unknown)."""
+    idx = getattr(ev.prepared, "measured", None)
+    try:
+        t = pd.DatetimeIndex(idx.index)
+        return float(np.median((t[1:] - t[:-1]).total_seconds()))
+    except (AttributeError, TypeError, ValueError):
+        return float("nan")
+
+
+# ============================================================================ self-checks
+#: the posterior mass within the outer PILE_BAND of the prior (each end) above which it "piles up" there
+PILE_BAND = 0.02
+PILE_FRACTION = 0.25
+
+
+def residual_checks(study, space, ev, E: np.ndarray) -> pd.DataFrame:
+    """Posterior predictive residuals against the sensors' stated accuracy.
+
+    Parameters
+    ----------
+    E : ndarray, shape (draws, targets, times)
+        Simulated minus measured for posterior draws (0 at missing samples).
+
+    Returns
+    -------
+    DataFrame, one row per target
+        ``RMSE`` (median over the draws), ``bias`` (mean error), ``RMSE without bias``, ``white noise`` (the
+        high-frequency part, sqrt(mean((e_t - e_(t-1))^2) / 2): sensor noise is white, a model error is smooth at
+        the sampling interval), ``model error`` (the rest, sqrt(max(0, var - white^2))), ``lag-1`` of the
+        residuals without bias, ``accuracy`` (stated), ``RMSE / accuracy`` and ``verdict``: "beyond the stated
+        accuracy" when the RMSE exceeds it (the sensor cannot explain the misfit), "model error above the noise"
+        when the smooth part exceeds half the accuracy (the sd of a sensor whose accuracy is a 95 % bound),
+        else "consistent with the sensor".
+    """
+    from .identifiability import sensor_sigma
+
+    rows = []
+    for k, t in enumerate(space.targets):
+        m = ev.mask[k]
+        e = E[:, k][:, m]
+        if e.shape[1] < 3:
+            continue
+        bias = e.mean(axis=1)
+        d = e - bias[:, None]
+        rmse = np.sqrt(np.mean(e**2, axis=1))
+        sd = np.sqrt(np.mean(d**2, axis=1))
+        white = np.sqrt(np.mean(np.diff(e, axis=1) ** 2, axis=1) / 2.0)
+        model = np.sqrt(np.maximum(0.0, sd**2 - white**2))
+        acc = sensor_sigma(study, t, ev.y[k][m])
+        row = {
+            "target": t,
+            "RMSE": float(np.median(rmse)),
+            "bias": float(np.median(bias)),
+            "RMSE without bias": float(np.median(sd)),
+            "white noise": float(np.median(white)),
+            "model error": float(np.median(model)),
+            "lag-1": lag1(np.where(m, E[0, k] - bias[0], 0.0), m),
+            "accuracy": acc,
+        }
+        row["RMSE / accuracy"] = row["RMSE"] / acc if acc > 0 else nan
+        if row["RMSE"] > acc:
+            row["verdict"] = "beyond the stated accuracy"
+        elif row["model error"] > 0.5 * acc:
+            row["verdict"] = "model error above the noise"
+        else:
+            row["verdict"] = "consistent with the sensor"
+        rows.append(row)
+    return pd.DataFrame(rows).set_index("target")
+
+
+def piled_up(samples: np.ndarray, prior: np.ndarray, band: float = PILE_BAND) -> tuple[float, float]:
+    """Fractions of the posterior ``samples`` below the prior's ``band`` quantile and above its 1 - ``band``
+    quantile [-]. A flat posterior puts ``band`` at each end; a posterior pushed against the edge of the box
+    (the data want a value the bounds forbid) puts most of its mass there."""
+    lo, hi = np.quantile(prior, [band, 1.0 - band])
+    return float(np.mean(samples < lo)), float(np.mean(samples > hi))
+
+
+def structure_verdict(checks: pd.DataFrame, summary: pd.DataFrame, combinations: pd.DataFrame, missing=()) -> dict:
+    """Whether the data reject the sampled structure, with the reasons in words.
+
+    Returns
+    -------
+    dict
+        ``rejected`` (bool), ``reasons`` (list of str), ``statement`` (one paragraph for the report).
+    """
+    reasons = []
+    for t, r in checks.iterrows():
+        if r["verdict"] == "beyond the stated accuracy":
+            reasons.append(
+                f"{t}: residual RMSE {r['RMSE']:.3g} is {r['RMSE / accuracy']:.1f} x the stated accuracy "
+                f"{r['accuracy']:.3g}"
+            )
+        elif r["verdict"] == "model error above the noise":
+            reasons.append(
+                f"{t}: a smooth model error of {r['model error']:.3g} (lag-1 {r['lag-1']:.2f}) exceeds the sensor's "
+                f"noise ({0.5 * r['accuracy']:.3g}, half its stated accuracy)"
+            )
+    for kind, table in (("parameter", summary), ("combination", combinations)):
+        for name, r in table.iterrows():
+            side = "lower" if r["at lower edge"] >= r["at upper edge"] else "upper"
+            frac = max(r["at lower edge"], r["at upper edge"])
+            if frac >= PILE_FRACTION:
+                reasons.append(
+                    f"{kind} {name} piles up at the {side} edge of its prior ({frac:.0%} of the posterior within "
+                    f"the outer {PILE_BAND:.0%} of the prior)"
+                )
+    if missing:
+        reasons.append(
+            "wallcal diagnose found that the data support " + ", ".join(missing) + ", which this structure lacks"
+        )
+    if reasons:
+        statement = (
+            "The data reject this model structure: " + "; ".join(reasons) + ". The intervals are conditional on "
+            "this structure and do not hold the truth as often as they claim: its parameters compensate for what "
+            "the structure lacks. Run `wallcal diagnose` and sample the study it writes."
+        )
+    else:
+        statement = (
+            "No self-check fired: the residuals are within the sensors' stated accuracy and no parameter or "
+            "combination piles up at the edge of its prior. The intervals are still conditional on the model "
+            "structure."
+        )
+    return {"rejected": bool(reasons), "reasons": reasons, "statement": statement}
+
+
+def missing_from_diagnosis(study, folder) -> list[str]:
+    """The extensions a ``wallcal diagnose`` output (``folder``) adopted that ``study`` lacks.
+
+    ``folder/candidates.csv`` lists each candidate with its ``extension`` and ``adopted``; ``folder/study.toml``
+    is the study with the adopted extensions. When ``study`` is that file, nothing is missing.
+    """
+    from ..errors import WallcalError
+
+    folder = Path(folder)
+    path = folder / "candidates.csv"
+    if not path.exists():
+        raise WallcalError(f"{path}: not found (--diagnosis expects the output folder of `wallcal diagnose`)")
+    table = pd.read_csv(path)
+    absent = [c for c in ("extension", "adopted") if c not in table.columns]
+    if absent:
+        raise WallcalError(f"{path}: no column {', '.join(absent)} (not a `wallcal diagnose` output)")
+    if study.path is not None and Path(study.path).resolve() == (folder / "study.toml").resolve():
+        return []
+    adopted = table["adopted"].astype(str).str.strip().str.lower().isin(("true", "1", "yes"))
+    return [str(e) for e in table.loc[adopted, "extension"]]
 
 
 # ============================================================================ result
@@ -115,6 +401,13 @@ class PosteriorResult:
         Derived quantities (R = d/lambda, rho*c, diffusivity, ratios, R_total) with the same columns.
     nonunique : DataFrame
         Distinct posterior parameter sets whose RMSEs all sit within the sensor accuracy.
+    tempering : dict
+        ``kind`` ("sandwich" or "none"), ``weight`` w of the tempered likelihood L^w and, for "sandwich", the
+        measured ``inflation``, ``directions``, ``bandwidth`` (see :func:`sandwich_weight`).
+    checks : DataFrame
+        Posterior predictive residuals per target (:func:`residual_checks`).
+    structure : dict
+        The self-checks' verdict (:func:`structure_verdict`): ``rejected``, ``reasons``, ``statement``.
     tau : ndarray
         Integrated autocorrelation time per parameter [steps].
     acceptance : float
@@ -141,12 +434,28 @@ class PosteriorResult:
     status: str = "complete"
     warnings: list = field(default_factory=list)
     truth: np.ndarray | None = None
+    tempering: dict = field(default_factory=lambda: {"kind": "none", "weight": 1.0})
+    checks: pd.DataFrame = field(default_factory=pd.DataFrame)
+    structure: dict = field(default_factory=lambda: {"rejected": False, "reasons": [], "statement": ""})
 
     def coverage(self) -> tuple[int, int]:
         """(identified parameters whose 95 % interval holds the truth, identified parameters with a truth)."""
         s = self.summary
         sel = s["verdict"].str.startswith("identified") & s["truth"].notna()
         return int(s.loc[sel, "inside 95%"].sum()), int(sel.sum())
+
+    def combination_coverage(self) -> dict:
+        """Coverage of the identifiable combinations (verdict identified or weakly identified) with a truth:
+        ``n`` and the numbers inside the 50 % and 95 % intervals (``inside 50%``, ``inside 95%``)."""
+        c = self.combinations
+        if "truth" not in c:
+            return {"n": 0, "inside 50%": 0, "inside 95%": 0}
+        sel = ~c["verdict"].str.startswith("not") & c["truth"].notna()
+        return {
+            "n": int(sel.sum()),
+            "inside 50%": int(c.loc[sel, "inside 50%"].sum()),
+            "inside 95%": int(c.loc[sel, "inside 95%"].sum()),
+        }
 
     def report(self) -> str:
         lines = [
@@ -160,13 +469,44 @@ class PosteriorResult:
                 for k in self.sigma
             ),
             f"acceptance fraction {self.acceptance:.2f}; integrated autocorrelation time "
-            f"{np.nanmin(self.tau):.0f}..{np.nanmax(self.tau):.0f} steps",
+            + (
+                f"{np.nanmin(self.tau):.0f}..{np.nanmax(self.tau):.0f} steps"
+                if np.isfinite(self.tau).any()
+                else "not estimated (chain too short)"
+            ),
+            self.tempering_line(),
         ]
         lines += [f"warning: {w}" for w in self.warnings]
+        if len(self.checks):
+            lines.append(
+                "posterior predictive residuals: "
+                + "; ".join(
+                    f"{t} RMSE {r['RMSE']:.3g} ({r['RMSE / accuracy']:.2f} x accuracy), model error "
+                    f"{r['model error']:.3g}, white noise {r['white noise']:.3g}: {r['verdict']}"
+                    for t, r in self.checks.iterrows()
+                )
+            )
+        if self.structure.get("statement"):
+            lines.append(("STRUCTURE REJECTED. " if self.structure["rejected"] else "") + self.structure["statement"])
         if self.truth is not None:
             k, n = self.coverage()
             lines.append(f"truth (reference wall) inside the 95 % interval for {k} of {n} identified parameters")
+            c = self.combination_coverage()
+            lines.append(
+                f"truth inside the 95 % interval for {c['inside 95%']} of {c['n']} identifiable combinations, "
+                f"inside the 50 % interval for {c['inside 50%']}"
+            )
         return "\n".join(lines)
+
+    def tempering_line(self) -> str:
+        t = self.tempering
+        if t.get("kind") != "sandwich":
+            return "likelihood not tempered (w = 1)"
+        return (
+            f"likelihood tempered by the sandwich rule: the score of the residuals varies {t['inflation']:.2f} x what "
+            f"the AR(1) model expects (Newey-West over {t['window_s'] / 3600:.0f} h, {t['directions']} identifiable "
+            f"directions), w = {t['weight']:.3f}: intervals {1 / np.sqrt(t['weight']):.2f} x as wide as untempered"
+        )
 
     def to_json(self) -> dict:
         return {
@@ -184,6 +524,10 @@ class PosteriorResult:
             "sigma_kind": self.sigma_kind,
             "warnings": self.warnings,
             "coverage": list(self.coverage()) if self.truth is not None else None,
+            "combination_coverage": self.combination_coverage() if self.truth is not None else None,
+            "tempering": self.tempering,
+            "structure": self.structure,
+            "checks": self.checks.reset_index().to_dict(orient="records"),
             "summary": self.summary.reset_index().to_dict(orient="records"),
         }
 
@@ -193,6 +537,7 @@ class PosteriorResult:
         self.correlation.to_csv(d / "posterior_correlation.csv", float_format="%.4f")
         self.combinations.to_csv(d / "posterior_combinations.csv", float_format="%.6g")
         self.nonunique.to_csv(d / "non_uniqueness.csv", float_format="%.6g")
+        self.checks.to_csv(d / "posterior_checks.csv", float_format="%.6g")
         np.savez_compressed(
             d / "chain.npz",
             chain=self.chain,
@@ -263,19 +608,25 @@ def derived(space, wall, X) -> dict:
 
 
 def _stats(samples: np.ndarray, prior: np.ndarray, truth=None) -> dict:
-    lo, hi = np.percentile(samples, [2.5, 97.5])
+    lo, q25, q75, hi = np.percentile(samples, [2.5, 25.0, 75.0, 97.5])
     sd = float(np.std(samples))
     psd = float(np.std(prior))
+    at_lo, at_hi = piled_up(samples, prior)
     row = {
         "mean": float(np.mean(samples)),
         "sd": sd,
         "q2.5": lo,
+        "q25": q25,
+        "q75": q75,
         "q97.5": hi,
         "sd/prior sd": sd / psd,
         "verdict": verdict(sd / psd),
+        "at lower edge": at_lo,
+        "at upper edge": at_hi,
     }
     if truth is not None:
         row["truth"] = truth
+        row["inside 50%"] = bool(q25 <= truth <= q75) if np.isfinite(truth) else False
         row["inside 95%"] = bool(lo <= truth <= hi) if np.isfinite(truth) else False
     return row
 
@@ -334,6 +685,8 @@ def posterior(
     max_evaluations: int | None = None,
     nonunique_candidates: int = 256,
     bias: bool = True,
+    tempering: str = "sandwich",
+    missing_extensions=(),
 ) -> PosteriorResult:
     """Sample the posterior of the calibration parameters.
 
@@ -364,7 +717,14 @@ def posterior(
         bound); without it a thermocouple's offset is fitted by the wall properties and the intervals miss
         the truth.
     nonunique_candidates : int
-        Posterior samples re-simulated to show distinct sets with RMSEs within the sensor accuracy.
+        Posterior samples re-simulated to show distinct sets with RMSEs within the sensor accuracy (and for the
+        posterior predictive residual checks).
+    tempering : {"sandwich", "none"}
+        Temper the likelihood by the sandwich rule (:func:`sandwich_weight`; one extra batch of 2n + 1 runs), or
+        not.
+    missing_extensions : sequence of str
+        Structure extensions that ``wallcal diagnose`` adopted for this study but the sampled structure lacks;
+        any makes the self-check say that the data reject the structure.
 
     Returns
     -------
@@ -396,8 +756,17 @@ def posterior(
         ph[t] = lag1(ek, m)
         sig[t] = float(np.sqrt(np.mean(ek[m] ** 2))) if sigma == "estimated" else sensor_sigma(study, t, ev.y[k][m])
         tau[t] = (0.5 * sensor_sigma(study, t, ev.y[k][m])) if bias else 0.0
+    if tempering not in ("sandwich", "none"):
+        raise WallcalError(f"tempering: {tempering!r} is not one of 'sandwich', 'none'")
+    temp = {"kind": "none", "weight": 1.0}
+    if tempering == "sandwich" and not resume:
+        temp = {"kind": "sandwich", **sandwich_weight(ev, space, x_start, sig, ph)}
     like = AR1Likelihood(
-        ev, [sig[t] for t in space.targets], [ph[t] for t in space.targets], [tau[t] for t in space.targets]
+        ev,
+        [sig[t] for t in space.targets],
+        [ph[t] for t in space.targets],
+        [tau[t] for t in space.targets],
+        weight=temp["weight"],
     )
     ckpt = checkpoint_path(out_dir)
     meta = {
@@ -407,6 +776,7 @@ def posterior(
         "phi": ph,
         "walkers": nw,
         "study_sha256": study.sha256,
+        "tempering": temp,
     }
     rng = np.random.default_rng(seed)
     prev_chain = np.zeros((0, nw, n))
@@ -421,10 +791,15 @@ def posterior(
                 raise WallcalError(f"{ckpt}: made with another {key}; run without --resume")
         prev_chain, prev_lp = data["chain"], data["log_prob"]
         sig, ph = old["sigma"], old["phi"]
+        temp = old.get("tempering", {"kind": "none", "weight": 1.0})
         like = AR1Likelihood(
-            ev, [sig[t] for t in space.targets], [ph[t] for t in space.targets], [tau[t] for t in space.targets]
+            ev,
+            [sig[t] for t in space.targets],
+            [ph[t] for t in space.targets],
+            [tau[t] for t in space.targets],
+            weight=temp["weight"],
         )
-        meta.update(sigma=sig, phi=ph)
+        meta.update(sigma=sig, phi=ph, tempering=temp)
         p0 = prev_chain[-1]
         steps = max(0, steps - len(prev_chain))
     else:
@@ -475,6 +850,8 @@ def posterior(
         truth=reference_values(study, space),
         nonunique_candidates=nonunique_candidates,
         seed=seed,
+        tempering=temp,
+        missing_extensions=missing_extensions,
     )
     if prepared.note:
         res.warnings.insert(0, prepared.note)
@@ -532,8 +909,11 @@ def summarise(
     truth=None,
     nonunique_candidates=256,
     seed=1,
+    tempering=None,
+    missing_extensions=(),
 ) -> PosteriorResult:
-    """Burn-in, thinning, diagnostics, per-parameter and derived summaries, non-uniqueness demonstration."""
+    """Burn-in, thinning, diagnostics, per-parameter and derived summaries, non-uniqueness demonstration,
+    posterior predictive checks and the structure verdict."""
     tau, burn, thin, warnings = burn_and_thin(chain, acceptance)
     flat_u = chain[burn::thin].reshape(-1, chain.shape[2])
     X = space.from_unit(flat_u)
@@ -575,7 +955,10 @@ def summarise(
     # non-uniqueness: distinct posterior sets, all RMSEs within the sensor accuracy
     pick = rng.choice(len(X), size=min(nonunique_candidates, len(X)), replace=False)
     Xc = X[pick]
-    _, rmse = ev.per_target(Xc)
+    E = ev.errors(Xc)
+    rmse = np.sqrt(np.einsum("ctk,ctk->ct", E, E) / ev.n_valid[None])
+    checks = residual_checks(study, space, ev, E)
+    structure = structure_verdict(checks, summary, comb, missing_extensions)
     acc = np.array([_accuracy(study, t, ev.y[k][ev.mask[k]]) for k, t in enumerate(space.targets)])
     ok = np.all(rmse <= acc[None], axis=1)
     chosen = []
@@ -612,6 +995,9 @@ def summarise(
         status=status,
         warnings=warnings,
         truth=truth,
+        tempering=tempering or {"kind": "none", "weight": 1.0},
+        checks=checks,
+        structure=structure,
     )
 
 

@@ -130,6 +130,18 @@ def register(sub) -> None:
         default="estimated",
         help="error sd: residual RMSE at the optimum (default) or the sensor accuracy",
     )
+    p.add_argument(
+        "--tempering",
+        choices=("sandwich", "none"),
+        default="sandwich",
+        help="temper the likelihood when the residuals vary more than the AR(1) model expects (default), or not",
+    )
+    p.add_argument(
+        "--diagnosis",
+        metavar="DIAGNOSE_DIR",
+        help="a `wallcal diagnose` output: its adopted extensions that this study lacks make the self-check say "
+        "that the data reject the structure",
+    )
     p.add_argument("--walkers", type=int)
     p.add_argument("--steps", type=int, default=1500)
     p.add_argument("--seed", type=int, default=1)
@@ -282,9 +294,10 @@ def _print_combinations(a):
 
 def run_posterior(args) -> int:
     from ..analysis.identifiability import identifiability
-    from ..analysis.posterior import posterior
+    from ..analysis.posterior import missing_from_diagnosis, posterior
 
     study, _, x0 = _study_space_optimum(args)
+    missing = missing_from_diagnosis(study, args.diagnosis) if args.diagnosis else []
     out = _out(args, "posterior")
     if x0 is None:
         from ..calibration import calibrate
@@ -309,12 +322,16 @@ def run_posterior(args) -> int:
         out_dir=out,
         resume=args.resume,
         progress=not args.quiet,
+        tempering=args.tempering,
+        missing_extensions=missing,
     )
     print(res.report())
     print()
+    print(table(res.checks, "Posterior predictive residuals against the sensors' stated accuracy"))
+    print()
     cols = ["mean", "sd", "q2.5", "q97.5", "sd/prior sd", "verdict"]
     if res.truth is not None:
-        cols += ["truth", "inside 95%"]
+        cols += ["truth", "inside 50%", "inside 95%"]
     print(table(res.summary[cols], "Posterior per parameter (SI units)"))
     print()
     print(table(res.combinations[cols], "Derived combinations, best identified first"))
@@ -336,8 +353,10 @@ def run_posterior(args) -> int:
     _write(res, study, out, "posterior")
     print(
         f"\nwrote {out}/posterior_summary.csv, posterior_correlation.csv, posterior_combinations.csv, "
-        "non_uniqueness.csv, chain.npz, corner.png, trace.png"
+        "posterior_checks.csv, non_uniqueness.csv, posterior.json, chain.npz, corner.png, trace.png"
     )
+    if res.structure["rejected"]:
+        print(f"\nSTRUCTURE REJECTED: {res.structure['statement']}")
     if res.status != "complete":
         print("the run was interrupted: the chain so far is summarised; continue with --resume")
         return 130
