@@ -303,7 +303,7 @@ def speed(workdir: Path, walkers: int | None, steps: int) -> None:
     study = wallcal.load_study(path)
     prep = prepare(study, needs=BATCH_NEEDS)
     cal = calibrate(study, progress=False, prepared=prep)
-    posterior(study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=2, progress=False, tempering="none")
+    posterior(study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=4, progress=False, tempering="none")
     t = time.perf_counter()
     r = posterior(study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=steps, progress=False)
     dt = time.perf_counter() - t
