@@ -22,8 +22,9 @@ Campaigns (their walls and errors are printed):
     nice .venv/bin/python bench/posterior_coverage.py                  # all campaigns, both arms
     nice .venv/bin/python bench/posterior_coverage.py --campaigns visible offset --steps 600 --no-diagnose
 
-Also timed: the posterior of a 22-parameter space (the study's 18 plus a probe depth, a contact resistance and
-two lambda(T) coefficients) on the ``all`` campaign: ``--speed`` (target: under 2 minutes on 2 cores).
+Also timed: the posterior of a 22-parameter space on the ``all`` campaign, ``--speed`` (target: under 2 minutes on
+2 cores): ``--speed-space lambdaT`` (the study's 18 plus a probe depth, a contact resistance and two lambda(T)
+coefficients) or ``linear`` (18 plus a probe depth, two contact resistances and a sensor offset).
 """
 
 from __future__ import annotations
@@ -177,6 +178,31 @@ bounds_kind = "absolute"
 """
 
 
+LINEAR_22 = """
+[[calibration.parameters]]
+probe = "T3A"
+property = "depth"
+bounds = [0.085, 0.115]
+
+[[calibration.parameters]]
+layers = ["3"]
+property = "contact_resistance"
+bounds = [0.0, 0.3]
+bounds_kind = "absolute"
+
+[[calibration.parameters]]
+layers = ["5"]
+property = "contact_resistance"
+bounds = [0.0, 0.3]
+bounds_kind = "absolute"
+
+[[calibration.parameters]]
+sensor = "T1A"
+property = "offset"
+bounds = [-1.0, 1.0]
+"""
+
+
 def study_of(name: str, workdir: Path) -> Path:
     """The study file of campaign ``name`` (made in ``workdir`` for the synthetic ones)."""
     if name == "visible":
@@ -204,18 +230,23 @@ def diagnose_or_none():
     return diagnose
 
 
-def sample(study, temperings, steps, walkers, missing=(), label=""):
-    """Calibrate ``study`` and sample its posterior with each tempering; one row per tempering."""
+def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
+    """Calibrate ``study`` (unless a ``start`` {name: value} is given) and sample its posterior with each
+    tempering; one row per tempering."""
     prep = prepare(study, needs=BATCH_NEEDS)
     t = time.perf_counter()
-    cal = calibrate(study, progress=False, prepared=prep)
+    names = [p.name for p in study.calibration.parameters]
+    if start is None or any(n not in start for n in names):
+        x0 = calibrate(study, progress=False, prepared=prep).x_opt
+    else:
+        x0 = np.array([start[n] for n in names])
     t_cal = time.perf_counter() - t
     rows = []
     for temp in temperings:
         t = time.perf_counter()
         r = posterior(
             study,
-            x_start=cal.x_opt,
+            x_start=x0,
             prepared=prep,
             walkers=walkers,
             steps=steps,
@@ -268,7 +299,7 @@ def coverage(names, temperings, steps, walkers, with_diagnose: bool, workdir: Pa
             rows.append({"campaign": name, **row})
             _show(rows[-1])
         if d is not None:
-            for row in sample(d.study, temperings, steps, walkers, label="with diagnose"):
+            for row in sample(d.study, temperings, steps, walkers, label="with diagnose", start=d.x):
                 rows.append({"campaign": name, "adopted": ", ".join(adopted), **row})
                 _show(rows[-1])
     return pd.DataFrame(rows)
@@ -295,10 +326,13 @@ def totals(df: pd.DataFrame) -> pd.DataFrame:
     return g
 
 
-def speed(workdir: Path, walkers: int | None, steps: int) -> None:
-    """Time the posterior of the 22-parameter space on the ``all`` campaign (starting at its calibrated optimum)."""
-    path = make_campaign(CAMPAIGNS["all"], workdir / "speed")
-    text = path.read_text() + EXTENSIONS_22
+def speed(workdir: Path, walkers: int | None, steps: int, space: str) -> None:
+    """Time the posterior of a 22-parameter space on the ``all`` campaign (starting at its calibrated optimum):
+    ``lambdaT`` (the study's 18 + a probe depth, a contact resistance, two lambda(T) coefficients: every
+    candidate wall is nonlinear, the engine's general path) or ``linear`` (18 + a probe depth, two contact
+    resistances, a sensor offset: the modal fast path)."""
+    path = make_campaign(CAMPAIGNS["all"], workdir / f"speed-{space}")
+    text = path.read_text() + (EXTENSIONS_22 if space == "lambdaT" else LINEAR_22)
     path.write_text(text)
     study = wallcal.load_study(path)
     prep = prepare(study, needs=BATCH_NEEDS)
@@ -307,8 +341,9 @@ def speed(workdir: Path, walkers: int | None, steps: int) -> None:
     t = time.perf_counter()
     r = posterior(study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=steps, progress=False)
     dt = time.perf_counter() - t
+    kind = "lambda(T) walls: the engine's general path" if space == "lambdaT" else "linear walls: the modal path"
     print(
-        f"posterior of a {r.space.n}-parameter space (lambda(T) walls: the engine's general path): "
+        f"posterior of a {r.space.n}-parameter space ({kind}): "
         f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps = {r.evaluations} simulations in {dt:.1f} s "
         f"({r.evaluations / dt:.0f}/s) -> {'OK' if dt <= 120 else 'SLOW'} (target 120 s)"
     )
@@ -324,13 +359,15 @@ def main() -> None:
     ap.add_argument("--no-diagnose", action="store_true")
     ap.add_argument("--speed", action="store_true", help="only time the 22-parameter posterior")
     ap.add_argument("--speed-steps", type=int, default=1000)
+    ap.add_argument("--speed-walkers", type=int, help="default the posterior's (4 n)")
+    ap.add_argument("--speed-space", choices=("lambdaT", "linear"), default="lambdaT")
     ap.add_argument("--workdir", help="keep the synthetic campaigns here (default: a temporary folder)")
     ap.add_argument("--csv", help="write the per-campaign rows here")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(args.workdir or tmp)
         if args.speed:
-            speed(workdir, None, args.speed_steps)
+            speed(workdir, args.speed_walkers, args.speed_steps, args.speed_space)
             return
         print(
             f"settings: {args.walkers} walkers x {args.steps} steps per posterior, temperings {args.tempering}, "

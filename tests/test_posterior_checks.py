@@ -168,8 +168,10 @@ def test_pile_up_and_the_structure_verdict():
 def test_missing_extensions_from_a_diagnose_output(example_study, tmp_path):
     with pytest.raises(WallcalError, match="candidates.csv: not found"):
         missing_from_diagnosis(example_study, tmp_path)
-    (tmp_path / "candidates.csv").write_text("extension,adopted\ndepth[T3A],True\ncontact_resistance[3],False\n")
-    assert missing_from_diagnosis(example_study, tmp_path) == ["depth[T3A]"]
+    (tmp_path / "candidates.csv").write_text(
+        "extension,adopted\ndepth[T3A],False\ncontact_resistance[3],False\ndepth[T3A] + offset[T1A],True\n"
+    )
+    assert missing_from_diagnosis(example_study, tmp_path) == ["depth[T3A]", "offset[T1A]"]
     (tmp_path / "candidates.csv").write_text("extension\ndepth[T3A]\n")
     with pytest.raises(WallcalError, match="no column adopted"):
         missing_from_diagnosis(example_study, tmp_path)

@@ -364,7 +364,8 @@ def structure_verdict(checks: pd.DataFrame, summary: pd.DataFrame, combinations:
 def missing_from_diagnosis(study, folder) -> list[str]:
     """The extensions a ``wallcal diagnose`` output (``folder``) adopted that ``study`` lacks.
 
-    ``folder/candidates.csv`` lists each candidate with its ``extension`` and ``adopted``; ``folder/study.toml``
+    ``folder/candidates.csv`` lists each candidate or combination (names joined by " + ") with its ``extension``
+    and ``adopted`` (the row of the adopted set); ``folder/study.toml``
     is the study with the adopted extensions. When ``study`` is that file, nothing is missing.
     """
     from ..errors import WallcalError
@@ -380,7 +381,8 @@ def missing_from_diagnosis(study, folder) -> list[str]:
     if study.path is not None and Path(study.path).resolve() == (folder / "study.toml").resolve():
         return []
     adopted = table["adopted"].astype(str).str.strip().str.lower().isin(("true", "1", "yes"))
-    return [str(e) for e in table.loc[adopted, "extension"]]
+    names = [name.strip() for e in table.loc[adopted, "extension"] for name in str(e).split(" + ")]
+    return list(dict.fromkeys(n for n in names if n))
 
 
 # ============================================================================ result
