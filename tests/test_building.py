@@ -19,6 +19,7 @@ from wallcal.errors import StudyError
 from wallcal.retrofitting.weather import resolve_weather
 
 CHICAGO = "USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw"
+pytestmark = pytest.mark.energyplus  # EnergyPlus runs, and the weather files shipped with it
 
 
 def _study(tmp_path, building: str = "") -> str:
