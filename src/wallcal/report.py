@@ -114,6 +114,9 @@ def _summary(study, outputs) -> str:
                 + (f" (floor {floor:.3f})" if isinstance(floor, float) and not math.isnan(floor) else "")
             )
         items.append("<b>RMSE before -> after.</b> " + html.escape("; ".join(parts)) + ".")
+    g = by.get("diagnose")
+    if g and g.status == "ok" and g.text:
+        items.append("<b>Model structure.</b> " + html.escape(g.text[0]))
     i = by.get("identifiability")
     if i and i.status == "ok" and i.text:
         items.append("<b>Identifiability.</b> " + html.escape(i.text[0]))

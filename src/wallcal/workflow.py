@@ -7,11 +7,12 @@ Stages, in the order of the reference study:
 3. ``grid`` - sensitivity to the numerical grid (Fig. 4)
 4. ``sensitivity`` - one-at-a-time sensitivity over the calibration space
 5. ``calibration`` - automatic calibration (Tables V-VII, Fig. 5)
-6. ``crosscheck`` - base and calibrated walls in every engine (Table VIII)
-7. ``standards`` - ISO 6946 U-value and ISO 13786 dynamic figures before and after, ISO 9869-1 verdict
-8. ``identifiability`` - which calibrated properties the data identify
-9. ``retrofit`` - the study's ``[retrofit]`` variants from the calibrated wall over a weather year
-10. ``building`` - with a ``[building]`` table: the study's and the calibrated wall (and the study's posterior
+6. ``diagnose`` - which extensions of the model structure the data support (``wallcal diagnose``)
+7. ``crosscheck`` - base and calibrated walls in every engine (Table VIII)
+8. ``standards`` - ISO 6946 U-value and ISO 13786 dynamic figures before and after, ISO 9869-1 verdict
+9. ``identifiability`` - which calibrated properties the data identify
+10. ``retrofit`` - the study's ``[retrofit]`` variants from the calibrated wall over a weather year
+11. ``building`` - with a ``[building]`` table: the study's and the calibrated wall (and the study's posterior
     draws) in the whole building through EnergyPlus (``wallcal building``)
 
 Each stage writes its machine-readable results in its own sub-directory of the
@@ -227,6 +228,31 @@ def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["calibration"] = res
 
 
+def _stage_diagnose(ctx: RunContext, d: Path, so: StageOutput):
+    from .analysis.diagnose import CRITERION, diagnose
+
+    cal = ctx.results.get("calibration")
+    if cal is None:
+        so.status, so.message = "skipped", "no calibrated wall"
+        return
+    kw = {"max_jacobians": 3, "max_adopted": 1} if ctx.quick else {}
+    res = diagnose(ctx.study, start=cal, prepared=ctx.prepared, **kw)
+    so.files += res.write_into(d)
+    so.text += res.summary().splitlines()
+    if ctx.quick:
+        so.text.append("Quick run: at most 3 Jacobians per candidate; one extension adopted at most.")
+    so.text.append(
+        f"{CRITERION}: the change of BIC on the AR(1) likelihood of the residuals against the study's structure "
+        "(negative is better; an extension is adopted when it lowers BIC by 10 or more; docs/identifiability.md). "
+        "study.toml is the study with the adopted extensions in its [calibration] table: calibrate it to use them."
+    )
+    so.tables.append(
+        ("Candidate extensions of the model structure, each recalibrated", res.candidates.set_index("extension"), ())
+    )
+    so.tables.append(("Residuals of the calibrated model per target", res.residuals, ("daily_share",)))
+    ctx.results["diagnose"] = res
+
+
 def _stage_crosscheck(ctx: RunContext, d: Path, so: StageOutput):
     from .comparison import compare_engines
 
@@ -412,6 +438,7 @@ STAGES = [
     Stage("grid", "Sensitivity to the numerical grid", _stage_grid),
     Stage("sensitivity", "One-at-a-time sensitivity", _stage_sensitivity),
     Stage("calibration", "Automatic calibration", _stage_calibration, required=True),
+    Stage("diagnose", "Which model structure the data support", _stage_diagnose),
     Stage("crosscheck", "Cross-check of the walls in every engine", _stage_crosscheck),
     Stage("standards", "Standards: U-value, dynamic characteristics, ISO 9869-1", _stage_standards),
     Stage("identifiability", "How well the data identify each property", _stage_identifiability),

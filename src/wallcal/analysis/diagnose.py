@@ -9,9 +9,9 @@ daily pattern), proposes structural extensions of the calibration's parameter sp
 - ``offset[S]``: a constant offset of target sensor S (its bias),
 
 and scores each, and each useful combination, by recalibrating warm-started from the calibrated point
-(bounded least squares; each Jacobian one engine batch). The score is the Bayesian information criterion
-on the AR(1) likelihood of the residuals (see :func:`ar1_loglike` and ``docs/identifiability.md``,
-"Choosing the model structure"):
+(the study's objective, bounded Levenberg-Marquardt: :func:`refine`; each Jacobian one engine batch). The score
+is the Bayesian information criterion on the AR(1) likelihood of the residuals at the recalibrated point (see
+:func:`ar1_loglike` and ``docs/identifiability.md``, "Choosing the model structure"):
 
     BIC = -2 sum_k log L_k(AR(1), phi_k and sigma_k at their maximum) + p ln N
 
@@ -47,7 +47,8 @@ INSULATION_LAMBDA = 0.1
 DEPTH_RANGE = 0.01
 #: bounds of a candidate contact resistance [m2K/W]
 CONTACT_BOUNDS = (0.0, 0.5)
-#: half-range of a candidate conductivity temperature coefficient around its base value [1/K]
+#: range of a candidate conductivity temperature coefficient above its base value [1/K]; an insulation's
+#: conductivity rises with temperature (ISO 10456), so the lower bound is min(base, 0)
 COEFFICIENT_RANGE = 0.02
 #: half-range of a candidate sensor offset, in units of the sensor's accuracy
 OFFSET_ACCURACIES = 2.0
@@ -94,14 +95,19 @@ def ar1_loglike(e: np.ndarray, mask: np.ndarray) -> tuple[float, int, float]:
     return -0.5 * m * (math.log(2 * math.pi * s2) + 1.0), m, phi
 
 
-def criterion(E: np.ndarray, mask: np.ndarray, n_parameters: int) -> tuple[float, float, int]:
-    """(BIC, log L, N) of the residuals ``E`` (targets x times) of a model with ``n_parameters``."""
+def ar1_profile(E: np.ndarray, mask: np.ndarray) -> tuple[float, int, np.ndarray, np.ndarray]:
+    """The AR(1) fit of every target's residuals ``E`` (targets x times): (log L summed over the targets, N pairs,
+    phi per target, innovation sd per target)."""
     ll, n = 0.0, 0
+    phi = np.zeros(E.shape[0])
+    sd = np.ones(E.shape[0])
     for k in range(E.shape[0]):
-        lk, mk, _ = ar1_loglike(E[k], mask[k])
+        lk, mk, phi[k] = ar1_loglike(E[k], mask[k])
         ll += lk
         n += mk
-    return -2.0 * ll + n_parameters * math.log(max(n, 2)), ll, n
+        if mk:
+            sd[k] = math.sqrt(math.exp(-2.0 * lk / mk - 1.0) / (2 * math.pi))
+    return ll, n, phi, sd
 
 
 # ============================================================================ residual analysis
@@ -220,7 +226,7 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
         r = res.loc[t]
         u = _fmt_unit(study, t)
         return (
-            f"{what}; {t}: bias {r['bias']:+.3g} {u}, lag {r['lag_min']:+.0f} min, daily pattern "
+            f"{what}; {t}: bias {r['bias']:+.3g} {u}, lag {r['lag_min']:+.1f} min, daily pattern "
             f"{r['daily_amplitude']:.3g} {u} peak to peak"
         )
 
@@ -302,7 +308,7 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
                 {
                     "layers": [ids[i] for i in g],
                     "property": "conductivity_temperature_coefficient",
-                    "bounds": [f0 - COEFFICIENT_RANGE, f0 + COEFFICIENT_RANGE],
+                    "bounds": [min(f0, 0.0), f0 + COEFFICIENT_RANGE],
                     "bounds_kind": "absolute",
                 },
                 f"conductivity of insulation layer(s) {lab} depending on temperature (lambda(T))",
@@ -387,19 +393,19 @@ class Diagnosis:
             lines.append(
                 f"The data support the study's structure: no candidate extension lowers BIC by {ADOPT_DELTA:g} or more."
             )
-        rest = c[~c["adopted"] & ~c["extension"].str.contains(r" \+ ", regex=True)].sort_values(CRITERION)
+        single = ~c["extension"].str.contains(r" \+ ", regex=True)
+        rest = c[single & ~c["extension"].isin(self.adopted)].sort_values(CRITERION)
         if len(rest):
             best = rest.iloc[0]
             lines.append(
-                f"Best single candidate not adopted on its own: {best['extension']} (delta BIC "
-                f"{best[CRITERION]:+.1f}); {len(c)} candidates and combinations scored "
-                f"({self.evaluations} simulations, {self.seconds:.1f} s)."
+                f"Best candidate left out: {best['extension']} (delta BIC {best[CRITERION]:+.1f} on its own); "
+                f"{len(c)} candidates and combinations scored ({self.evaluations} simulations, {self.seconds:.1f} s)."
             )
         r = self.residuals
         feats = []
         for t, row in r.iterrows():
             feats.append(
-                f"{t}: RMSE {row['rmse']:.3f} {units.get(t, '')}, bias {row['bias']:+.3f}, lag {row['lag_min']:+.0f} "
+                f"{t}: RMSE {row['rmse']:.3f} {units.get(t, '')}, bias {row['bias']:+.3f}, lag {row['lag_min']:+.1f} "
                 f"min, daily pattern {row['daily_amplitude']:.3f} peak to peak ({100 * row['daily_share']:.0f} % of "
                 f"the variance), phi {row['phi']:.3f}"
             )
@@ -715,25 +721,32 @@ def diagnose(
             evaluators[key] = Evaluator(prepared, sp)
         return evaluators[key]
 
-    def fit(tables: list[dict], names: tuple, x_start: dict) -> _Fit:
+    def fit(tables: list[dict], names: tuple, x_start: dict, ll_before: float | None = None) -> _Fit:
+        """Recalibrate a structure from ``x_start`` (the study's objective, warm-started) and score it by its
+        AR(1) log-likelihood: ``ll_before`` plus the gain of this fit over its starting point (the structure it
+        extends, with the new parameters at their base values) - a contact link or the lambda(T) path changes the
+        discrete model slightly even at the base value, and that change is no evidence for the extension.
+        Without ``ll_before``: the log-likelihood at the fit."""
         nonlocal evaluations
         sp = space if not tables else parse_space(study, _extended_raw(study, tables)["calibration"])
         ev = evaluator(sp)
         xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
         xs = np.clip(xs, sp.lower, sp.upper)
+        ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask)[0] if ll_before is not None else 0.0
         u, n_runs = refine(lambda U: ev.residuals(sp.from_unit(U)), sp.to_unit(xs), max_jacobians, FTOL)
         x = sp.from_unit(u)
         E = ev.errors(x[None])[0]
-        evaluations += n_runs + 1
-        bic, ll, _ = criterion(E, ev.mask, sp.n)
+        evaluations += n_runs + 2
+        ll, n, _, _ = ar1_profile(E, ev.mask)
+        if ll_before is not None:
+            ll = ll_before + (ll - ll0)
         rmse = np.sqrt(np.einsum("tk,tk->t", E, E) / ev.n_valid)
-        return _Fit(names, x, sp, bic, rmse, ll)
+        return _Fit(names, x, sp, -2.0 * ll + sp.n * math.log(max(n, 2)), rmse, ll)
 
     say("recalibrating the study's structure (warm start)", force=True)
     base = fit([], (), dict(zip(space.names, x0, strict=True)))
     ev0 = evaluator(space)
-    E0 = ev0.errors(base.x[None])[0]
-    _, _, n_pairs = criterion(E0, ev0.mask, space.n)
+    _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask)
     resid = residual_analysis(ev0, base.x, prepared.times)
     y = {t: ev0.y[k][ev0.mask[k]] for k, t in enumerate(space.targets)}
     exts = [e for e in propose(study, space, resid, y) if kinds is None or e.kind in kinds]
@@ -744,7 +757,9 @@ def diagnose(
         key = tuple(sorted(names))
         if key not in fits:
             say(f"scoring {' + '.join(names)} ({len(fits) + 1} scored, {evaluations} simulations)")
-            fits[key] = fit([by_name[n].table for n in names], names, dict(zip(warm.space.names, warm.x, strict=True)))
+            fits[key] = fit(
+                [by_name[n].table for n in names], names, dict(zip(warm.space.names, warm.x, strict=True)), warm.ll
+            )
         return fits[key]
 
     singles = {e.name: score((e.name,), base) for e in exts}
