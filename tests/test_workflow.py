@@ -89,6 +89,7 @@ def test_run_trh_example(tmp_path):
     assert main(["run", str(TRH), "--out", str(out), "--quick", "--quiet"]) == 0
     st = stages(out)
     assert st.pop("retrofit")["status"] == "skipped"  # no [retrofit] table
+    assert st.pop("building")["status"] == "skipped"  # no [building] table
     assert all(s["status"] == "ok" for s in st.values()), st
     assert "energyplus" not in (out / "engines" / "comparison.csv").read_text()
 
@@ -99,6 +100,7 @@ def test_run_passys_example(tmp_path):
     assert main(["run", str(PASSYS), "--out", str(out), "--quick", "--quiet"]) == 0
     st = stages(out)
     assert st.pop("retrofit")["status"] == "skipped"  # no [retrofit] table
+    assert st.pop("building")["status"] == "skipped"  # no [building] table
     assert all(s["status"] == "ok" for s in st.values()), st
     assert load_study(PASSYS).simulation.time_step == 300
     # why EnergyPlus did not run, in the engine's own words (EnergyPlusEngine.check_time_step)
