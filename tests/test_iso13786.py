@@ -615,3 +615,100 @@ def test_layer_checks_look_past_a_good_no_mass_layer_and_refuse_bad_ones():
         "wall.layers['r'].thermal_resistance: must be >= 0",
         "wall.layers['c'].density: must be > 0 for ISO 13786, got 0.0",
     ]
+
+
+def test_a_wall_of_jumps_only_or_of_no_layers_is_refused_by_name():
+    with pytest.raises(StudyError) as exc:
+        iso13786.periodic_profile(Wall(()), DAY, 1.0, 0.0, [0.0])
+    assert exc.value.problems == ["wall.layers: the wall has no layers"]
+    membrane = Wall((Layer("m", 0.0, thermal_resistance=0.1),))
+    with pytest.raises(StudyError) as exc:
+        iso13786.periodic_profile(membrane, DAY, 1.0, 0.0, [0.0])
+    assert exc.value.problems == ["wall: the wall has no finite-thickness layer to evaluate depths in"]
+
+
+def test_max_xi_counts_every_layer():
+    delta = iso13786.penetration_depth(1.8, 2400, 1000, DAY)
+    half = Layer("c1", 160 * delta, 1.8, 2400, 1000)
+    two = Wall((half, half.replace(id="c2")))  # 160 + 160 = 320 penetration depths
+    with pytest.raises(StudyError, match="the wall is 320 penetration depths thick"):
+        iso13786.periodic_profile(two, DAY, 1.0, 0.0, [0.0])
+
+
+def _slab(te, ti, x, x0, x1, k):
+    """Carslaw & Jaeger's periodic slab with imposed face amplitudes te at x0 and ti at x1."""
+    return (te * np.sinh(k * (x1 - x)) + ti * np.sinh(k * (x - x0))) / np.sinh(k * (x1 - x0))
+
+
+def test_profile_of_two_layers_with_a_large_contact_resistance_by_hand():
+    """0.1 m concrete, a 0.5 m2K/W contact (larger than any depth in metres), 0.1 m brick: in each layer the
+    slab solution between its face temperatures, a jump of R q at the contact, q continuous across it."""
+    wall = Wall((Layer("c", 0.1, 1.8, 2400, 1000, contact_resistance=0.5), Layer("b", 0.1, 0.7, 1800, 900)))
+    te, ti = 1.0, 0.4j
+    x = np.array([0.0, 0.03, 0.07, 0.1, 0.13, 0.18, 0.2])
+    ext = iso13786.periodic_profile(wall, DAY, te, ti, x, interface_side="exterior")
+    intr = iso13786.periodic_profile(wall, DAY, te, ti, x, interface_side="interior")
+    q = ext.heat_flux[3]
+    assert ext.temperature[3] - intr.temperature[3] == pytest.approx(0.5 * q, rel=1e-12)
+    assert intr.heat_flux[3] == pytest.approx(q, rel=1e-12)
+    kc = (1 + 1j) / iso13786.penetration_depth(1.8, 2400, 1000, DAY)
+    kb = (1 + 1j) / iso13786.penetration_depth(0.7, 1800, 900, DAY)
+    np.testing.assert_allclose(ext.temperature[:4], _slab(te, ext.temperature[3], x[:4], 0.0, 0.1, kc), rtol=1e-12)
+    np.testing.assert_allclose(intr.temperature[3:], _slab(intr.temperature[3], ti, x[3:], 0.1, 0.2, kb), rtol=1e-12)
+    assert intr.temperature[-1] == pytest.approx(ti, abs=1e-14)
+
+
+def test_contact_resistance_of_the_next_to_last_layer_counts():
+    # no-mass layers only: Z = [[1, -R_T], [0, 1]] with R_T summed by hand; the default surfaces 0.13 and 0.04
+    wall = Wall(
+        (
+            Layer("a", 0.0, thermal_resistance=0.5, contact_resistance=0.2),
+            Layer("b", 0.0, thermal_resistance=0.3, contact_resistance=0.7),  # the last layer's: outside the wall
+        )
+    )
+    np.testing.assert_allclose(iso13786.wall_matrix(wall), [[1, -(0.04 + 0.5 + 0.2 + 0.3 + 0.13)], [0, 1]], atol=1e-15)
+    assert iso13786.dynamic_characteristics(wall).u_value == pytest.approx(1 / (0.13 + 0.5 + 0.2 + 0.3 + 0.04))
+
+
+def test_the_heat_flow_direction_reaches_the_air_layer_table():
+    # 35 mm unventilated air: Table 8 horizontal 0.18, downward 0.19 + 10/25 * 0.02 = 0.198
+    wall = Wall((Layer("gap", 0.035, material="air, unventilated"), Layer("m", 0.0, thermal_resistance=0.5)))
+    np.testing.assert_allclose(iso13786.wall_matrix(wall), [[1, -(0.04 + 0.18 + 0.5 + 0.13)], [0, 1]], atol=1e-15)
+    down = iso13786.wall_matrix(wall, direction="downward")
+    np.testing.assert_allclose(down, [[1, -(0.04 + 0.198 + 0.5 + 0.13)], [0, 1]], atol=1e-15)
+    dc = iso13786.dynamic_characteristics(wall, direction="downward")  # Rsi 0.17 for downward heat flow
+    np.testing.assert_allclose(dc.Z, [[1, -(0.04 + 0.198 + 0.5 + 0.17)], [0, 1]], atol=1e-15)
+    np.testing.assert_allclose(dc.Z_surface, [[1, -(0.198 + 0.5)], [0, 1]], atol=1e-15)
+    assert dc.u_value == pytest.approx(1 / (0.17 + 0.198 + 0.5 + 0.04), rel=1e-12)
+
+
+def test_a_well_ventilated_air_layer_makes_rse_equal_rsi_in_u():
+    wall = Wall(
+        (
+            Layer("1", 0.015, 0.13, 500, 1600, "Wood panel"),
+            Layer("2", 0.035, material="air gap"),
+            *study_wall_3_to_9().layers,
+        )
+    )
+    r = 0.10 / 0.04 + 0.0125 / 0.2 + 0.04 / 0.035 + 0.0125 / 0.2 + 0.095 / 0.035 + 0.055 / 0.035 + 0.025 / 0.21
+    well = iso13786.dynamic_characteristics(wall, air_layers={"2": "well_ventilated"})
+    assert well.u_value == pytest.approx(1 / (0.13 + r + 0.13), rel=1e-12)
+
+
+@pytest.mark.parametrize("period_s", [DAY, 600.0])
+def test_time_shift_of_a_wall_100_penetration_depths_thick(period_s):
+    """Y12 = lambda k / sinh(k L) without surfaces; for xi = L / delta = 100, sinh(k L) = e^{k L} / 2 to 1e-87, so
+    the lag unwrapped from zero frequency is xi - pi/4 radians (about 15.8 periods): the phase path must be
+    sampled finely enough for the unwrapping, at a long and a short period."""
+    delta = iso13786.penetration_depth(1.8, 2400, 1000, period_s)
+    dc = iso13786.dynamic_characteristics(Wall((concrete(100 * delta),)), period_s, rsi=0.0, rse=0.0)
+    expected_h = (100 - np.pi / 4) / (2 * np.pi) * period_s / 3600
+    assert dc.time_shift_h == pytest.approx(expected_h, rel=1e-9)
+    assert dc.xi == pytest.approx({"c": 100.0}, rel=1e-12)
+
+
+def test_penetration_depth_is_a_plain_float_for_numbers():
+    d = iso13786.penetration_depth(1.8, 2400, 1000)
+    assert type(d) is float  # prints as a number in reports, not as np.float64(...)
+    arr = iso13786.penetration_depth(np.array([1.8, 0.04]), 2400, 1000)
+    assert arr.shape == (2,) and arr[0] == pytest.approx(d)
