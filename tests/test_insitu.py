@@ -342,3 +342,103 @@ def test_written_files_format_and_the_figure_arguments(study, meas, tmp_path, mo
     first = rows[1].split(",")
     assert first[0] == "2025-05-30T00:00:00" and first[1] == "0"
     assert first[2] == f"{r.selection['qi'].iloc[0]:.6g}" and first[5] == f"{r.res.r_running[0]:.6g}"
+
+
+def test_no_u_value_for_a_zero_resistance(study, meas):
+    f = meas.frame.copy()
+    f["exterior"] = f["interior"]  # no temperature difference at all: R = 0, U undefined
+    r = iso9869_for_study(study, measurements=_with_frame(meas, f))
+    assert r.res.r_value == 0.0 and math.isnan(r.u)
+
+
+def test_errors_of_a_study_without_a_file_have_no_source(study, meas):
+    mem = dataclasses.replace(study, path=None)  # a study built in memory
+    no_flux = dataclasses.replace(mem, sensors=tuple(s for s in mem.sensors if s.quantity != "heat_flux"))
+    two = dataclasses.replace(mem, sensors=(*mem.sensors, dataclasses.replace(mem.sensor("qi"), name="qi2")))
+    air = dataclasses.replace(mem, interior=dataclasses.replace(mem.interior, type="air_temperature"))
+    for s, kw in ((no_flux, {}), (no_flux, {"sensor": "qi"}), (two, {}), (air, {})):
+        with pytest.raises(StudyError) as exc:
+            iso9869_for_study(s, measurements=meas, **kw)
+        assert exc.value.source is None, kw
+
+
+def test_both_faces_without_surface_temperatures_are_named(study, meas):
+    both = dataclasses.replace(
+        study,
+        interior=dataclasses.replace(study.interior, type="air_temperature"),
+        exterior=dataclasses.replace(study.exterior, type="air_temperature"),
+    )
+    with pytest.raises(StudyError) as exc:
+        iso9869_for_study(both, measurements=meas)
+    assert exc.value.problems == [
+        "ISO 9869 needs measured surface temperatures on both faces, but boundary.exterior.type is "
+        "'air_temperature' and boundary.interior.type is 'air_temperature' (not \"surface_temperature\")"
+    ]
+
+
+def test_gap_message_names_the_longest_gap_when_a_shorter_one_follows(study, meas):
+    f = meas.frame.copy()
+    i0 = f.index.get_loc(pd.Timestamp("2025-06-01 12:00"))
+    col = f.columns.get_loc("qi")
+    f.iloc[i0 : i0 + 30, col] = np.nan  # the longest: 30 readings
+    f.iloc[i0 + 100 : i0 + 102, col] = np.nan  # a later short one
+    with pytest.raises(DataError, match=rf"column 'qi' is missing 30 reading\(s\) from {f.index[i0]} \(longer"):
+        iso9869_for_study(study, measurements=_with_frame(meas, f))
+
+
+def test_the_figure_file_is_drawn_from_its_arguments(study, meas, tmp_path, monkeypatch):
+    from wallcal.standards import insitu
+
+    r = iso9869_for_study(study, measurements=meas)
+    seen = {}
+    draw = insitu._draw
+
+    def spy(ax, hours, res, sensor, face, title):
+        seen["args"] = (hours, res, sensor, face, title)
+        draw(ax, hours, res, sensor, face, title)
+
+    monkeypatch.setattr(insitu, "_draw", spy)
+    hours = r.times_s / 3600.0
+    insitu._figure(tmp_path / "f.png", hours, r.res, "qi", "interior", "Campaign A")
+    assert seen["args"][2:] == ("qi", "interior", "Campaign A") and seen["args"][1] is r.res
+    assert seen["args"][0] is hours
+    assert (tmp_path / "f.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _drawn(hours, running, r_end, duration_h):
+    """The axes _draw fills for a running estimate made up here."""
+    from types import SimpleNamespace
+
+    res = SimpleNamespace(
+        r_value=r_end,
+        r_running=np.asarray(running, float),
+        duration_h=duration_h,
+        verdict=SimpleNamespace(statement="made up"),
+    )
+    return _axes_of(SimpleNamespace(res=res, sensor="q", face="interior"), hours=np.asarray(hours, float))[0]
+
+
+def test_the_24_h_mark_is_drawn_for_records_longer_than_a_day_only():
+    ax = _drawn([0.0, 12.0, 24.0], [1.0, 2.0, 2.0], 2.0, 24.0)
+    assert [ln.get_label() for ln in ax.get_lines()] == ["running estimate"]
+    ax = _drawn([0.0, 12.0, 24.5], [1.0, 2.0, 2.0], 2.0, 24.5)
+    (mark,) = [ln for ln in ax.get_lines() if ln.get_label() == "24 h before the end"]
+    assert list(mark.get_xdata()) == [0.5, 0.5]
+
+
+def test_the_axis_is_scaled_from_24_h_or_a_quarter_of_the_record_on_whichever_is_earlier():
+    r = 2.0
+    # 120 h: the first day is wild; the reading at exactly 24 h is the largest of the rest
+    hours = np.arange(0.0, 120.25, 0.25)
+    running = np.where(hours < 24.0, 100.0, r)
+    running[hours == 24.0] = 2.5
+    lo, hi = 0.9 * r, 2.5
+    assert _drawn(hours, running, r, 120.0).get_ylim() == pytest.approx((lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)))
+    # 8 h: scaled from a quarter of it (2 h) on
+    hours = np.arange(0.0, 8.25, 0.25)
+    running = np.where(hours < 2.0, 100.0, r)
+    running[hours == 2.0] = 2.5
+    assert _drawn(hours, running, r, 8.0).get_ylim() == pytest.approx((lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)))
+    # a flat estimate: the axis still spans R +- 10 % (plus a 5 % margin of that span)
+    flat = _drawn(hours, np.full(hours.shape, r), r, 8.0).get_ylim()
+    assert flat == pytest.approx((0.9 * r - 0.01 * r, 1.1 * r + 0.01 * r))
