@@ -656,6 +656,10 @@ def test_profile_of_two_layers_with_a_large_contact_resistance_by_hand():
     np.testing.assert_allclose(ext.temperature[:4], _slab(te, ext.temperature[3], x[:4], 0.0, 0.1, kc), rtol=1e-12)
     np.testing.assert_allclose(intr.temperature[3:], _slab(intr.temperature[3], ti, x[3:], 0.1, 0.2, kb), rtol=1e-12)
     assert intr.temperature[-1] == pytest.approx(ti, abs=1e-14)
+    # away from the contact both readings agree, whichever side's segment evaluated the depth first
+    np.testing.assert_allclose(ext.temperature[4:], intr.temperature[4:], rtol=1e-12)
+    np.testing.assert_allclose(ext.temperature[:3], intr.temperature[:3], rtol=1e-12)
+    np.testing.assert_allclose(ext.heat_flux, intr.heat_flux, rtol=1e-12)
 
 
 def test_contact_resistance_of_the_next_to_last_layer_counts():
