@@ -340,14 +340,17 @@ class Engine:
         return None
 
     def problems(self, inp: SimulationInput) -> list[str]:
-        """Everything in ``inp`` this engine cannot run (empty when it can), each in words."""
+        """Everything in ``inp`` this engine cannot run (empty when it can), each in words: what its
+        capabilities and :meth:`check_time_step` refuse. An engine with more rules extends the list
+        (``super().problems(inp) + [...]``)."""
         cap, out = self.capabilities, []
         for face in FACES:
             b = getattr(inp, face)
             if b.type not in cap.boundary_types:
+                hint = f" (use the {cap.substitute} engine for it)" if cap.substitute else ""
                 out.append(
-                    f"the {self.name} engine accepts {' and '.join(map(repr, cap.boundary_types))} boundaries; "
-                    f"the {face} face has {b.type!r}"
+                    f"the {self.name} engine supports only {' and '.join(map(repr, cap.boundary_types))} "
+                    f"boundaries; the {face} face has {b.type!r}{hint}"
                 )
         why = self.check_time_step(float(inp.time_step))
         if why:

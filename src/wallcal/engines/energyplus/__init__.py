@@ -185,16 +185,9 @@ class EnergyPlusEngine(Engine):
         return None
 
     def problems(self, inp: SimulationInput) -> list[str]:
-        out = []
-        for face, b in (("exterior", inp.exterior), ("interior", inp.interior)):
-            if b.type != "surface_temperature":
-                out.append(
-                    f"the energyplus engine supports only 'surface_temperature' boundaries; the {face} "
-                    f"face has {b.type!r} (use the 'fd' engine for air-temperature or heat-flux boundaries)"
-                )
-        why = self.check_time_step(float(inp.time_step))
-        if why:
-            out.append(why)
+        """The contract's checks (boundary types, time step, capabilities) and EnergyPlus's own: equal,
+        finite boundary series, the scheme, at most a year less two days, output times inside the run."""
+        out = super().problems(inp)
         if len(inp.exterior.values) != len(inp.interior.values):
             out.append("exterior and interior boundary series differ in length")
         elif len(inp.exterior.values) < 2:
