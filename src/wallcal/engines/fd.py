@@ -296,8 +296,9 @@ class PreparedFD:
         else:
             res = self._run_general(props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state)
         npr = len(self.probe_names)
-        for d in np.flatnonzero(self.depth_face >= 0):  # a plane on a face: the face flux
-            res.out[:, npr + 2 + d] = res.out[:, npr + self.depth_face[d]]
+        for d, face in enumerate(self.depth_face):  # a plane on a face: the face flux
+            if face >= 0:
+                res.out[:, npr + 2 + d] = res.out[:, npr + face]
         return res
 
     def _plane_capacities(self, props: PropertyArrays) -> np.ndarray:
@@ -306,6 +307,8 @@ class PreparedFD:
         no-mass or contact link, and for a plane between two nodes), shape (n_candidates, n_inner)."""
         grid = self.grid
         out = np.zeros((props.n_candidates, len(self.depth_link)))
+        if not len(self.depth_link):
+            return out
         for k, (lnk, node) in enumerate(zip(self.depth_link, self.depth_node, strict=True)):
             li, n = grid.link_layer[lnk], grid.link_intervals[lnk]
             if node >= 0 and li >= 0 and n > 0:
@@ -373,20 +376,10 @@ class PreparedFD:
         nc, n_nodes = cap.shape
         npr, n_d, n_in = pa.shape[1], len(self.depth_face), len(self.depth_link)
         want = np.ones(npr + 2 + n_d, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
-        if len(want) == npr + 2 and n_d:
-            want = np.concatenate([want, np.zeros(n_d, dtype=np.bool_)])
-        want_k = np.zeros(npr + 2 + 2 * n_in, dtype=np.bool_)  # the kernel's rows
-        want_k[: npr + 2] = want[: npr + 2]
-        for d in np.flatnonzero(want[npr + 2 :]):
-            if self.depth_face[d] >= 0:
-                want_k[npr + self.depth_face[d]] = True
-        inner_want = want[npr + 2 + self.depth_inner]
-        want_k[npr + 2 :: 2] = inner_want
-        want_k[npr + 3 :: 2] = inner_want
-        # the two levels' weights on the link's nodes (a, a + 1): new (a, b), old (a, b)
-        th, gl = theta[:, self.depth_link], g[:, self.depth_link]
-        cp = cplus / self.dt
-        dws = np.ascontiguousarray(np.stack([th * gl + cp, -th * gl, (1.0 - th) * gl - cp, -(1.0 - th) * gl], axis=2))
+        if n_d:
+            want_k, dws = self._modal_depth_rows(theta, g, cplus, want)
+        else:
+            want_k, dws = want[: npr + 2], np.zeros((nc, 0, 4))
         t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         th_in = modal.input_thetas(theta, bc_theta, self.bc_type)
         keys = [(float(a), float(b)) for a, b in th_in]
@@ -406,11 +399,32 @@ class PreparedFD:
             out[idx], tend[idx] = in_threads(part, len(idx))
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
-        inner = out[:, npr + 2 :: 2] + out[:, npr + 3 :: 2] + self._known_node_terms(dws, n_nodes)
-        out = self._with_depth_rows(out[:, : npr + 2], inner)
-        out[:, npr + 2 :][:, ~want[npr + 2 :]] = np.nan
+        if n_d:
+            inner = out[:, npr + 2 :: 2] + out[:, npr + 3 :: 2] + self._known_node_terms(dws, n_nodes)
+            out = self._with_depth_rows(out[:, : npr + 2], inner)
+            out[:, npr + 2 :][:, ~want[npr + 2 :]] = np.nan
         energy = np.full((nc, 3), np.nan)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
+
+    def _modal_depth_rows(self, theta, g, cplus, want):
+        """The modal kernel's rows wanted (the depth planes' two level rows each; a plane on a face needs
+        the face's row) and the planes' weights on their link's nodes (a, a + 1), shape (c, d, 4): new
+        level (a, b), old level (a, b)."""
+        npr, n_d, n_in = len(self.probe_names), len(self.depth_face), len(self.depth_link)
+        if len(want) == npr + 2:
+            want = np.concatenate([want, np.zeros(n_d, dtype=np.bool_)])
+        want_k = np.zeros(npr + 2 + 2 * n_in, dtype=np.bool_)
+        want_k[: npr + 2] = want[: npr + 2]
+        for d in np.flatnonzero(want[npr + 2 :]):
+            if self.depth_face[d] >= 0:
+                want_k[npr + self.depth_face[d]] = True
+        inner_want = want[npr + 2 + self.depth_inner]
+        want_k[npr + 2 :: 2] = inner_want
+        want_k[npr + 3 :: 2] = inner_want
+        th, gl = theta[:, self.depth_link], g[:, self.depth_link]
+        cp = cplus / self.dt
+        dws = np.stack([th * gl + cp, -th * gl, (1.0 - th) * gl - cp, -(1.0 - th) * gl], axis=2)
+        return want_k, np.ascontiguousarray(dws)
 
     def _known_node_terms(self, dws: np.ndarray, n_nodes: int) -> np.ndarray:
         """What a known face node on an inner plane's link adds to the plane's flux at the output times:
