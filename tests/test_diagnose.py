@@ -145,6 +145,31 @@ def test_candidates_proposed(null_campaign):
     ]
 
 
+def test_candidates_of_a_probe_inside_a_layer_and_of_a_flux(raw):
+    """A probe inside layer 5 (0.1125..0.1525 m): contact resistances at both its faces (4|5 and 5|6); a flux
+    target's offset spans a quarter of the signal's sd when 2 x its relative accuracy is less."""
+    r = copy.deepcopy(raw)
+    r["wall"]["probes"][1]["depth"] = 0.13
+    r["calibration"]["targets"] = ["T2A", "qi"]
+    st = parse_study(r, EXAMPLE.parent).replace(path=EXAMPLE)
+    prep = prepare(st, needs=BATCH_NEEDS)
+    ev = Evaluator(prep, st.calibration)
+    y = {t: ev.y[k][ev.mask[k]] for k, t in enumerate(st.calibration.targets)}
+    ext = {e.name: e for e in propose(st, st.calibration, y=y)}
+    assert [n for n in ext if n.startswith("contact")] == ["contact_resistance[4]", "contact_resistance[5]"]
+    assert ext["depth[T2A]"].table["bounds"] == [pytest.approx(0.12), pytest.approx(0.14)]
+    assert ext["offset[T2A]"].table["bounds"] == [-1.0, 1.0]  # 2 x 0.5 K
+    half = ext["offset[qi]"].table["bounds"][1]
+    assert half == pytest.approx(0.25 * np.std(y["qi"]), rel=1e-2) and half > 2 * 0.03 * np.sqrt(np.mean(y["qi"] ** 2))
+    # lambda(T): insulation layers only (3, 5+8 tied, 7), never the LVL panels or the plasterboard
+    assert sorted(n for n in ext if n.startswith("conductivity_temperature")) == [
+        "conductivity_temperature_coefficient[3]",
+        "conductivity_temperature_coefficient[5,8]",
+        "conductivity_temperature_coefficient[7]",
+    ]
+    assert ext["conductivity_temperature_coefficient[3]"].table["bounds"] == [0.0, 0.02]
+
+
 def test_probe_offset_gets_the_depth_adopted(probe_campaign, tmp_path):
     st = load_study(probe_campaign)
     d = diagnose(st)

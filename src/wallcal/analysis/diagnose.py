@@ -50,8 +50,10 @@ CONTACT_BOUNDS = (0.0, 0.5)
 #: range of a candidate conductivity temperature coefficient above its base value [1/K]; an insulation's
 #: conductivity rises with temperature (ISO 10456), so the lower bound is min(base, 0)
 COEFFICIENT_RANGE = 0.02
-#: half-range of a candidate sensor offset, in units of the sensor's accuracy
+#: half-range of a candidate sensor offset: this many times the sensor's accuracy, and at least
+#: OFFSET_SPREAD times the standard deviation of its measured signal
 OFFSET_ACCURACIES = 2.0
+OFFSET_SPREAD = 0.25
 #: Jacobians allowed in each warm-started recalibration
 MAX_JACOBIANS = 8
 #: relative change of the least-squares cost that ends a recalibration (a BIC change of 1 is about 2 / N)
@@ -321,8 +323,11 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
         yt = np.asarray((y or {}).get(t, [1.0]), dtype=float)
         sig = sensor_sigma(study, t, yt)
         if not np.isfinite(sig) or sig <= 0:
-            sig = 0.5 if study.sensor(t).quantity == "temperature" else 1.0
-        half = float(f"{OFFSET_ACCURACIES * sig:.3g}")
+            sig = 0.0
+        # a relative accuracy (a heat-flux meter's gain) says little about an offset: at least a quarter of the
+        # signal's standard deviation
+        half = max(OFFSET_ACCURACIES * sig, OFFSET_SPREAD * float(np.std(yt)))
+        half = float(f"{half:.3g}") if half > 0 else 1.0
         out.append(
             Extension(
                 name,
