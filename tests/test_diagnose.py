@@ -204,6 +204,17 @@ def test_probe_offset_gets_the_depth_adopted(probe_campaign, tmp_path):
     assert "depth[T3A]" in d.summary() and "support" in d.summary()
 
 
+def test_contact_resistance_gets_adopted(tmp_path):
+    """A 0.15 m2K/W contact resistance between layers 3 and 4 (where T3A sits): the contact is adopted, not the
+    probe's depth (which fits T3A almost as well but not the other probes), and its value recovered."""
+    st = load_study(make_campaign(tmp_path / "contact", contact={"3": 0.15}, conductivity=TRUE_LAMBDA))
+    d = diagnose(st, kinds=("depth", "contact_resistance"))
+    assert d.adopted == ["contact_resistance[3]"]
+    assert d.x["contact_resistance[3]"] == pytest.approx(0.15, rel=0.05)
+    c = d.candidates.set_index("extension")
+    assert c.loc["contact_resistance[3]", "delta_bic"] < c.loc["depth[T3A]", "delta_bic"] < -ADOPT_DELTA
+
+
 def test_no_structure_error_adopts_nothing(null_campaign, tmp_path):
     st = load_study(null_campaign)
     msgs = []
