@@ -3,11 +3,13 @@ errors that are not retried, an unreachable scheduler."""
 
 from __future__ import annotations
 
+import json
 import time
 
 import distributed
 import pytest
 
+from cluster_studies import short_study
 from cluster_tasks import die_once, refuse, square_logged, worker_pid
 from wallcal.cluster import ClusterError, Executor, current_executor, executor_from, safe_key, task_key
 from wallcal.errors import DataError
@@ -119,3 +121,42 @@ def test_unreachable_scheduler_is_a_clear_error_within_15_s():
         with Executor(address):
             pass
     assert time.perf_counter() - t < 15
+
+
+def test_many_studies_each_a_task_equal_bit_for_bit_to_each_alone(cluster, tmp_path, capsys):
+    from wallcal.cli import main
+
+    one = short_study(tmp_path / "ex", "wall_one", days=2, seed=1)
+    two = short_study(tmp_path / "ex", "wall_two", days=1, seed=5)
+    for s in (one, two):
+        assert main(["calibrate", str(s), "--out", str(tmp_path / f"alone_{s.stem}"), "--quiet"]) == 0
+    out = tmp_path / "many"
+    assert main(["calibrate", str(one), str(two), "--out", str(out), "--scheduler", cluster]) == 0
+    err = capsys.readouterr().err
+    assert "studies calibrated" in err and "2/2" in err
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "wall_one", "wall_two"]
+    for s in (one, two):
+        alone, many = tmp_path / f"alone_{s.stem}", out / s.stem
+        for name in ("calibrated_wall.toml", "metrics.csv", "parameters.csv"):
+            assert (many / name).read_bytes() == (alone / name).read_bytes(), (s.stem, name)
+        a, m = (json.loads((d / "calibration.json").read_text()) for d in (alone, many))
+        for key in ("parameters", "objective_base", "objective_optimum", "evaluations", "rmse", "seed"):
+            assert a[key] == m[key], key  # the same floats, not close ones
+        assert [h[0::2] for h in a["history"]] == [h[0::2] for h in m["history"]]  # evaluations, best objective
+    assert not (tmp_path / ".many.runs").exists()
+
+
+def test_many_studies_resume_reuses_finished_studies(cluster, tmp_path):
+    from wallcal.calibration.many import calibrate_many
+    from wallcal.errors import StudyError
+
+    one = short_study(tmp_path / "ex", "a", days=1, seed=1)
+    two = short_study(tmp_path / "ex", "b", days=1, seed=2)
+    with Executor(cluster, cache_dir=tmp_path / "runs", progress=False) as ex:
+        first = calibrate_many([one], executor=ex)
+    with Executor(cluster, cache_dir=tmp_path / "runs", resume=True, progress=False) as ex:
+        both = calibrate_many([one, two], executor=ex)
+        assert ex.stats["cached"] == 1 and ex.stats["submitted"] == 1
+    assert both[0].f_opt == first[0].f_opt and list(both[0].x_opt) == list(first[0].x_opt)
+    with pytest.raises(StudyError, match="one output folder OUT/a/"):
+        calibrate_many([one, tmp_path / "other" / "a.toml"])

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -20,25 +19,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from conftest import EXAMPLE, REPO
+from cluster_studies import short_study
+from conftest import REPO
 
 pytestmark = [pytest.mark.slow, pytest.mark.energyplus]
 
 BIN = Path(sys.executable).parent
-
-
-def short_study(dest: Path) -> Path:
-    """The bundled example over 1 day (30 .. 31 May) at 180 s steps, with its data beside it."""
-    shutil.copytree(EXAMPLE.parent, dest)
-    text = (dest / "study.toml").read_text()
-    old = "warmup_start = 2025-05-23T00:00:00\nstart = 2025-05-30T00:00:00\nend = 2025-06-07T00:00:00"
-    assert old in text
-    text = text.replace(
-        old, "warmup_start = 2025-05-29T00:00:00\nstart = 2025-05-30T00:00:00\nend = 2025-05-31T00:00:00"
-    )
-    text = text.replace("time_step = 60 ", "time_step = 180 ")
-    (dest / "short.toml").write_text(text)
-    return dest / "short.toml"
 
 
 def env_for_workers(tmp: Path) -> dict:
@@ -141,7 +127,7 @@ def run_cli(args, env=None, timeout=600):
 
 
 def test_crosscheck_on_dask_processes_survives_a_killed_worker(dask_cluster, tmp_path):
-    study = short_study(tmp_path / "ex")
+    study = short_study(tmp_path / "ex", "short")
     wall = study.parent / "true_wall.toml"
     out = tmp_path / "cc"
     before = worker_pids(dask_cluster)

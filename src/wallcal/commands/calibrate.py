@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..formatting import table
-from .clusteropts import add_cluster_options, executor_for
+from .clusteropts import add_cluster_options, add_scheduler, executor_for
 
 
 def register(sub) -> None:
@@ -20,16 +20,26 @@ def register(sub) -> None:
         "Table VIII), parameters.csv, convergence.png and fit.png. Ctrl-C keeps the best "
         "wall so far; --resume continues from the last checkpoint.",
     )
-    p.add_argument("study")
-    p.add_argument("--out", metavar="DIR", help="output directory (default: calibration/ next to the study)")
+    p.add_argument("studies", nargs="+", metavar="STUDY", help="study file; several: each calibrated as its own task")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="output directory (default: calibration/ next to the study); with several studies OUT/<study file "
+        "stem>/ for each (required)",
+    )
     p.add_argument(
         "--algorithm",
         choices=("pso-hj", "least-squares", "differential-evolution", "nelder-mead", "cma-es"),
         help="default: the study's calibration.algorithm",
     )
     p.add_argument("--seed", type=int)
-    p.add_argument("--resume", action="store_true", help="continue from the checkpoint of --out")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue from the checkpoint of --out (several studies: reuse the studies already calibrated)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress line")
+    add_scheduler(p)
     p.set_defaults(func=run_calibrate)
 
     c = sub.add_parser(
@@ -72,15 +82,18 @@ def register(sub) -> None:
 
 
 def run_calibrate(args) -> int:
+    if len(args.studies) > 1:
+        return calibrate_studies(args)
     from ..calibration import calibrate
     from ..study import load_study
 
-    study = load_study(args.study)
-    out = Path(args.out) if args.out else Path(args.study).resolve().parent / "calibration"
-    res = calibrate(
-        study, algorithm=args.algorithm, seed=args.seed, out_dir=out, resume=args.resume, progress=not args.quiet
-    )
-    res.write(out)
+    study = load_study(args.studies[0])
+    out = Path(args.out) if args.out else Path(args.studies[0]).resolve().parent / "calibration"
+    with executor_for(args, out, progress=not args.quiet):
+        res = calibrate(
+            study, algorithm=args.algorithm, seed=args.seed, out_dir=out, resume=args.resume, progress=not args.quiet
+        )
+        res.write(out)
     print(
         f"{study.name}: {res.algorithm}, objective {res.space.objective} {res.f_base:.6g} -> {res.f_opt:.6g} "
         f"in {res.evaluations} simulations, {res.seconds:.1f} s ({res.status})"
@@ -104,6 +117,44 @@ def run_calibrate(args) -> int:
     if res.status != "complete":
         print("the run was interrupted: these are the best values so far; continue with --resume")
         return 130
+    return 0
+
+
+def calibrate_studies(args) -> int:
+    """``wallcal calibrate S1.toml S2.toml ... --out OUT``: each study one task, into OUT/<study file stem>/."""
+    import json
+
+    from ..calibration.many import calibrate_many, study_stems
+    from ..errors import StudyError
+    from ..outputs import output_dir
+    from ..simulation import manifest_of
+
+    if not args.out:
+        raise StudyError(["--out: give the output directory for several studies (OUT/<study file stem>/ each)"])
+    stems = study_stems(args.studies)
+    with executor_for(args, args.out, label="studies calibrated", progress=not args.quiet) as ex:
+        results = calibrate_many(args.studies, algorithm=args.algorithm, seed=args.seed, executor=ex)
+        manifest = {"command": "calibrate", "studies": [str(Path(p).resolve()) for p in args.studies]}
+        with output_dir(args.out, manifest=manifest) as tmp:
+            for stem, res in zip(stems, results, strict=True):
+                d = Path(tmp) / stem
+                d.mkdir()
+                res.write_into(d)
+                (d / "manifest.json").write_text(json.dumps(manifest_of(res.study, "calibrate"), indent=2, default=str))
+    rows = [
+        {
+            "study": stem,
+            "algorithm": r.algorithm,
+            "objective base": r.f_base,
+            "objective optimum": r.f_opt,
+            "simulations": r.evaluations,
+            "seconds": r.seconds,
+            "status": r.status,
+        }
+        for stem, r in zip(stems, results, strict=True)
+    ]
+    print(table(pd.DataFrame(rows).set_index("study"), f"{len(rows)} studies calibrated"))
+    print(f"\nwrote {args.out}/<study>/calibrated_wall.toml, calibration.json, metrics.csv, ... for each study")
     return 0
 
 
