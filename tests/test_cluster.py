@@ -7,6 +7,7 @@ import json
 import time
 
 import distributed
+import pandas as pd
 import pytest
 
 from cluster_studies import short_study
@@ -160,3 +161,56 @@ def test_many_studies_resume_reuses_finished_studies(cluster, tmp_path):
     assert both[0].f_opt == first[0].f_opt and list(both[0].x_opt) == list(first[0].x_opt)
     with pytest.raises(StudyError, match="one output folder OUT/a/"):
         calibrate_many([one, tmp_path / "other" / "a.toml"])
+
+
+@pytest.mark.slow
+@pytest.mark.energyplus
+def test_energyplus_study_is_refined_with_energyplus_runs_in_parallel(cluster, tmp_path):
+    from wallcal.calibration import calibrate
+    from wallcal.calibration.refine import refine_with_energyplus
+    from wallcal.simulation import BATCH_NEEDS, prepare, simulate
+    from wallcal.study import load_study
+    from wallcal.wallfile import load_wall
+
+    study = load_study(short_study(tmp_path / "ex", "ep", days=1, engine="energyplus"))
+    res = calibrate(study, progress=False, refine=False)  # the fast engine's search
+    with Executor(cluster, progress=False) as ex:
+        ref = refine_with_energyplus(
+            study, res.space, prepare(study, needs=BATCH_NEEDS), res.x_opt, rounds=1, progress=False
+        )
+        assert ex.stats["submitted"] == ref.runs  # every EnergyPlus run went through the executor
+    assert ref.runs == 4 and ref.rounds == 1  # the fast optimum, then one batch of 3 in parallel
+    assert list(ref.x_start) == list(res.x_opt)
+    assert ref.f_opt <= ref.f_start
+    # the EnergyPlus RMSEs it reports are those of a plain EnergyPlus simulation of the wall
+    met = simulate(study, "energyplus", wall=ref.wall_opt).metrics.set_index("signal")
+    for t in ("T3A", "T2A", "T1A"):
+        assert ref.rmse_opt[t] == pytest.approx(met.loc[t, "rmse"], rel=1e-9)
+    res.refinement = ref
+    out = tmp_path / "out"
+    res.write(out)
+    wall = load_wall(out / "energyplus_wall.toml")
+    assert [la.conductivity for la in wall.layers] == [la.conductivity for la in ref.wall_opt.layers]
+    table = pd.read_csv(out / "energyplus_refinement.csv", index_col=0)
+    assert list(table.columns) == ["rmse_energyplus_fast_optimum", "rmse_energyplus_refined"]
+    info = json.loads((out / "calibration.json").read_text())["energyplus_refinement"]
+    assert info["energyplus_runs"] == 4 and info["objective_refined"] == ref.f_opt
+
+
+def test_calibrating_an_energyplus_study_refines_by_default(tmp_path, monkeypatch):
+    from wallcal.calibration import calibrate, refine
+    from wallcal.study import load_study
+
+    seen = []
+
+    def fake(study, space, prepared, x0, **kw):
+        seen.append(list(x0))
+        return refine.Refinement(1, 0, x0, x0, 1.0, 1.0, {}, {}, study.wall)
+
+    monkeypatch.setattr(refine, "refine_with_energyplus", fake)
+    ep = load_study(short_study(tmp_path / "ex", "ep", days=1, engine="energyplus"))
+    res = calibrate(ep, progress=False)
+    assert seen == [list(res.x_opt)] and res.refinement is not None
+    assert "refined with EnergyPlus from the fast engine's optimum in 1 EnergyPlus runs" in res.notes[-1]
+    fd = load_study(short_study(tmp_path / "ex", "fd", days=1))
+    assert calibrate(fd, progress=False).refinement is None and len(seen) == 1

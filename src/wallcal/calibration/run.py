@@ -78,6 +78,7 @@ class CalibrationResult:
     measured: pd.DataFrame | None = None
     floors: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    refinement: object = None
 
     # ------------------------------------------------------------------ reporting
     def parameter_table(self) -> pd.DataFrame:
@@ -131,6 +132,11 @@ class CalibrationResult:
             "noise_floors": self.floors,
             "notes": self.notes,
             "history": [list(h) for h in self.history],
+            **(
+                {"energyplus_refinement": self.refinement.to_json(self.space.names)}
+                if self.refinement is not None
+                else {}
+            ),
         }
 
     def write(self, out_dir) -> Path:
@@ -155,6 +161,17 @@ class CalibrationResult:
 
         plot_convergence(self, d / "convergence.png")
         plot_fit(self, d / "fit.png")
+        if self.refinement is not None:
+            ref = self.refinement
+            (d / "energyplus_wall.toml").write_text(
+                dump_wall(
+                    ref.wall_opt,
+                    f"Calibrated wall refined with EnergyPlus ({ref.runs} EnergyPlus runs) from "
+                    f"{self.study.path or 'study'}\nEnergyPlus objective {self.space.objective} "
+                    f"{ref.f_start:.6g} at the fast engine's optimum -> {ref.f_opt:.6g}",
+                )
+            )
+            ref.table().to_csv(d / "energyplus_refinement.csv", float_format="%.6g")
 
 
 # ============================================================================ the run
@@ -177,6 +194,7 @@ def calibrate(
     progress: bool = True,
     prepared: Prepared | None = None,
     space: ParameterSpace | None = None,
+    refine: bool | None = None,
 ) -> CalibrationResult:
     """Calibrate the study's wall.
 
@@ -196,6 +214,9 @@ def calibrate(
         Continue from the checkpoint of ``out_dir``.
     progress : bool
         Show a progress line on stderr.
+    refine : bool, optional
+        Refine the optimum with EnergyPlus runs (:func:`wallcal.calibration.refine.refine_with_energyplus`, on
+        the executor); default: when the study's engine is ``energyplus``.
 
     Returns
     -------
@@ -270,6 +291,17 @@ def calibrate(
     )
     x_opt = space.from_unit(rec.best_u)
     result = _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, rec, status)
+    if refine is None:
+        refine = study.simulation.engine == "energyplus"
+    if refine and status == "complete":
+        from .refine import refine_with_energyplus
+
+        ref = refine_with_energyplus(study, space, prepared, x_opt, progress=progress)
+        result.refinement = ref
+        result.notes.append(
+            f"refined with EnergyPlus from the fast engine's optimum in {ref.runs} EnergyPlus runs: EnergyPlus "
+            f"objective {ref.f_start:.6g} -> {ref.f_opt:.6g} (energyplus_wall.toml, energyplus_refinement.csv)"
+        )
     if status == "complete" and ckpt is not None and ckpt.exists():
         ckpt.unlink()
     return result

@@ -111,9 +111,21 @@ def run_calibrate(args) -> int:
     if res.floors:
         m["noise floor"] = pd.Series(res.floors)
     print(table(m.loc[[s.name for s in study.sensors]], "RMSE per sensor (Table VIII)"))
+    if res.refinement is not None:
+        ref = res.refinement
+        print()
+        print(
+            table(
+                ref.table().rename(
+                    columns={"rmse_energyplus_fast_optimum": "fast optimum", "rmse_energyplus_refined": "refined"}
+                ),
+                f"EnergyPlus RMSE per target before and after the refinement ({ref.runs} EnergyPlus runs)",
+            )
+        )
     for note in res.notes:
         print(f"note: {note}")
-    print(f"\nwrote {out}/calibrated_wall.toml, calibration.json, metrics.csv, convergence.png, fit.png")
+    extra = ", energyplus_wall.toml, energyplus_refinement.csv" if res.refinement is not None else ""
+    print(f"\nwrote {out}/calibrated_wall.toml, calibration.json, metrics.csv, convergence.png, fit.png{extra}")
     if res.status != "complete":
         print("the run was interrupted: these are the best values so far; continue with --resume")
         return 130
