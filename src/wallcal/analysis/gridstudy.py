@@ -168,7 +168,7 @@ def grid_study(
     from ..calibration.algorithms import Progress
     from ..data import load_measurements
     from ..errors import StudyError
-    from ..simulation import prepare, simulate
+    from ..simulation import prepare, result_from_output, simulate
 
     time_steps = sorted({float(x) for x in time_steps})
     grid_constants = sorted({float(x) for x in grid_constants})
@@ -176,7 +176,7 @@ def grid_study(
     bad += [f"grid constant {x:g} must be > 0" for x in grid_constants if not x > 0]
     if bad or not time_steps or not grid_constants:
         raise StudyError(bad or ["give at least one time step and one grid constant"])
-    from ..engines import engine_for
+    from ..engines import engine_class, engine_for
 
     choice = engine_for(engine or study.simulation.engine, time_steps=time_steps, purpose="the grid study")
     engine = choice.name
@@ -191,12 +191,24 @@ def grid_study(
     prog = Progress("grid-study", enabled=progress)
     rows, series = [], {}
     settings = [(dt, C) for C in grid_constants for dt in time_steps]
+    batch = {}
+    if not engine_class(engine).capabilities.batches:
+        # one run per setting, seconds each (EnergyPlus): every setting at once on the executor
+        preps = [prepare(study, engine, time_step=dt, grid_constant=C, measurements=meas) for dt, C in settings]
+        preps = [p.with_wall(wall) if wall is not None else p for p in preps]
+        outs = preps[0].engine.run_inputs([p.inp for p in preps])
+        batch = {s: (p, o) for s, p, o in zip(settings, preps, outs, strict=True)}
     for i, (dt, C) in enumerate(settings):
         prog.update(f"dt {dt:g} s, C {C:g} ({i + 1}/{len(settings)})")
-        prep = prepare(study, engine, time_step=dt, grid_constant=C, measurements=meas)
-        t0 = time.perf_counter()
-        res = simulate(study, engine, prepared=prep, wall=wall)
-        sec = time.perf_counter() - t0
+        if (dt, C) in batch:
+            prep, out = batch[(dt, C)]
+            res = result_from_output(prep, out, engine)
+            sec = float(out.info.get("seconds", float("nan")))
+        else:
+            prep = prepare(study, engine, time_step=dt, grid_constant=C, measurements=meas)
+            t0 = time.perf_counter()
+            res = simulate(study, engine, prepared=prep, wall=wall)
+            sec = time.perf_counter() - t0
         met = res.metrics.set_index("signal")
         series[(dt, C)] = res.simulated
         for t in targets:

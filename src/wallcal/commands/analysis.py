@@ -7,6 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..formatting import table
+from .clusteropts import add_cluster_options, executor_for
 
 
 def _floats(text: str, what: str) -> list[float]:
@@ -55,6 +56,7 @@ def register(sub) -> None:
     )
     g.add_argument("--out", metavar="DIR", help="default: grid_study/ next to the study")
     g.add_argument("--quiet", action="store_true")
+    add_cluster_options(g)
     g.set_defaults(func=run_grid_study)
 
     s = sub.add_parser(
@@ -165,6 +167,12 @@ def run_grid_study(args) -> int:
     from ..study import load_study
 
     study = load_study(args.study)
+    out = _out(args, "grid_study")
+    with executor_for(args, out, progress=not args.quiet):
+        return grid_study_command(args, study, out, grid_study)
+
+
+def grid_study_command(args, study, out, grid_study) -> int:
     res = grid_study(
         study,
         _floats(args.time_steps, "--time-steps"),
@@ -173,7 +181,6 @@ def run_grid_study(args) -> int:
         tolerance=args.tolerance,
         progress=not args.quiet,
     )
-    out = _out(args, "grid_study")
     print(table(res.rmse_table(), "RMSE per target against the time step [s] for each grid constant C (Fig. 4)"))
     print()
     conv = res.convergence().reset_index()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .clusteropts import add_scheduler, executor_for
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -25,6 +27,7 @@ def register(sub) -> None:
     p.add_argument("--engines", help="comma-separated engines (default: every available one)")
     p.add_argument("--quick", action="store_true", help="smaller grid study and swarm (a preview)")
     p.add_argument("--quiet", action="store_true")
+    add_scheduler(p)
     p.set_defaults(func=run)
 
 
@@ -36,7 +39,8 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path(args.study).resolve().parent / "report"
     skip = tuple(s.strip() for s in args.skip.split(",") if s.strip())
     engines = [e.strip() for e in args.engines.split(",")] if args.engines else None
-    outputs = run_study(study, out, skip=skip, quick=args.quick, engines=engines, progress=not args.quiet)
+    with executor_for(args, out, progress=not args.quiet):  # every EnergyPlus run of every stage
+        outputs = run_study(study, out, skip=skip, quick=args.quick, engines=engines, progress=not args.quiet)
     print(f"{study.name}: report {out / 'index.html'}")
     for o in outputs:
         print(f"  {o.name:16s} {o.status:8s} {o.seconds:6.1f} s  {o.message}")

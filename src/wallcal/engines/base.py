@@ -402,6 +402,12 @@ class Engine:
             walls = walls.walls(inp.wall, inp.probes)
         return stack_outputs(self.name, inp.probes, [self.run_wall(prepared, w) for w in walls])
 
+    def run_inputs(self, inputs: Sequence[SimulationInput]) -> list[EngineOutput]:
+        """One run of each input's wall (inputs that may differ in anything: time step, grid, wall). This default
+        runs them one after the other; an engine whose runs take seconds (EnergyPlus) sends them to the executor
+        of :mod:`wallcal.cluster`."""
+        return [self.run(self.prepare(inp)) for inp in inputs]
+
     def simulate(self, inp: SimulationInput) -> EngineOutput:
         """``run(prepare(inp))``: one run of the input's wall."""
         return self.run(self.prepare(inp))
