@@ -214,3 +214,26 @@ def test_calibrating_an_energyplus_study_refines_by_default(tmp_path, monkeypatc
     assert "refined with EnergyPlus from the fast engine's optimum in 1 EnergyPlus runs" in res.notes[-1]
     fd = load_study(short_study(tmp_path / "ex", "fd", days=1))
     assert calibrate(fd, progress=False).refinement is None and len(seen) == 1
+
+
+def test_grid_study_of_energyplus_steps_sends_every_setting_in_one_call(tmp_path, monkeypatch):
+    from wallcal.analysis.gridstudy import grid_study
+    from wallcal.engines import get_engine
+    from wallcal.engines.energyplus import EnergyPlusEngine
+    from wallcal.study import load_study
+
+    calls = []
+
+    def run_inputs(self, inputs):  # EnergyPlus stood in for by fd-cn on the same inputs (milliseconds)
+        calls.append([(i.time_step, i.grid_constant) for i in inputs])
+        outs = get_engine("fd-cn").run_inputs(inputs)
+        for o in outs:
+            o.info["seconds"] = 1.5
+        return outs
+
+    monkeypatch.setattr(EnergyPlusEngine, "run_inputs", run_inputs)
+    study = load_study(short_study(tmp_path / "ex", "ep", days=1, engine="energyplus"))
+    res = grid_study(study, (60, 120, 180), (2, 3), targets=["T3A"], progress=False)
+    assert res.engine == "energyplus" and res.note == ""
+    assert calls == [[(60.0, 2.0), (120.0, 2.0), (180.0, 2.0), (60.0, 3.0), (120.0, 3.0), (180.0, 3.0)]]
+    assert len(res.table) == 6 and res.table["rmse"].between(0.01, 2).all() and (res.table["seconds"] == 1.5).all()

@@ -147,7 +147,7 @@ class Executor:
 
     # ------------------------------------------------------------------ lifetime
     def __enter__(self) -> Executor:
-        if self.address is not None:
+        if self.address is not None and not in_dask_worker():
             self.client()  # an unreachable scheduler fails here, before any work
         self._token = _ACTIVE.set(self)
         return self
