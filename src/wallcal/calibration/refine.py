@@ -14,7 +14,8 @@ EnergyPlus itself fits the data best, by output space mapping:
 
 It stops when a round improves the EnergyPlus objective by less than ``tol`` (relative), after ``rounds``
 rounds, or before it would exceed ``max_runs`` EnergyPlus runs (1 + 3 per round: at most 13 by default).
-The objective is the calibration's own (``calibration.objective`` over the targets, the same valid samples).
+The objective is the calibration's own (``calibration.objective`` over the targets, the same valid samples,
+the measured signals corrected by the candidates' sensor offsets when the space has ``offset`` parameters).
 """
 
 from __future__ import annotations
@@ -145,14 +146,18 @@ def refine_with_energyplus(
                 S[c, k] = getattr(out, kind)[key]
         return S
 
-    def score(S):
-        e = np.where(ev.mask[None], S - ev.y[None], 0.0)
+    def measured(X):  # the targets' measured signals with the candidates' sensor offsets, if any
+        y = ev.y[None]
+        return y + space.offsets(X)[:, :, None] if ev.has_offsets else y
+
+    def score(S, X):
+        e = np.where(ev.mask[None], S - measured(X), 0.0)
         cse = np.einsum("ctk,ctk->ct", e, e)
         return ev.objective_from(cse), np.sqrt(cse / ev.n_valid[None])
 
     x0 = np.asarray(x0, dtype=float)
     S_best = eplus(x0[None])
-    f, rmse = score(S_best)
+    f, rmse = score(S_best, x0[None])
     runs = 1
     f_start, rmse_start = float(f[0]), rmse[0]
     x_best, f_best, rmse_best, S_best = x0, float(f[0]), rmse[0], S_best[0]
@@ -163,8 +168,9 @@ def refine_with_energyplus(
         d = np.where(ev.mask, S_best - ev.simulate(x_best[None])[0], 0.0)
 
         def residuals(U, d=d):
-            S = ev.simulate(space.from_unit(U)) + d[None]
-            e = np.where(ev.mask[None], S - ev.y[None], 0.0)
+            X = space.from_unit(U)
+            S = ev.simulate(X) + d[None]
+            e = np.where(ev.mask[None], S - measured(X), 0.0)
             fu = ev.objective_from(np.einsum("ctk,ctk->ct", e, e))
             return np.where(np.isfinite(fu), fu, np.inf), (e * np.sqrt(w)[None, :, None]).reshape(len(U), -1)
 
@@ -185,7 +191,7 @@ def refine_with_energyplus(
         S = eplus(X)
         runs += len(X)
         done_rounds += 1
-        fs, rms = score(S)
+        fs, rms = score(S, X)
         k = int(np.argmin(fs))
         improved = fs[k] < f_best * (1.0 - tol)
         if fs[k] < f_best:

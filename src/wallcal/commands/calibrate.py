@@ -136,6 +136,7 @@ def calibrate_studies(args) -> int:
     """``wallcal calibrate S1.toml S2.toml ... --out OUT``: each study one task, into OUT/<study file stem>/."""
     import json
 
+    from .. import __version__
     from ..calibration.many import calibrate_many, study_stems
     from ..errors import StudyError
     from ..outputs import output_dir
@@ -152,7 +153,8 @@ def calibrate_studies(args) -> int:
                 d = Path(tmp) / stem
                 d.mkdir()
                 res.write_into(d)
-                (d / "manifest.json").write_text(json.dumps(manifest_of(res.study, "calibrate"), indent=2, default=str))
+                man = {"wallcal_version": __version__, **manifest_of(res.study, "calibrate")}
+                (d / "manifest.json").write_text(json.dumps(man, indent=2, default=str))
     rows = [
         {
             "study": stem,
