@@ -203,7 +203,7 @@ class Executor:
             threads_per_worker=1,
             processes=True,
             dashboard_address="127.0.0.1:0",
-            silence_logs=logging.ERROR,
+            silence_logs=logging.CRITICAL,
         )
         self._client = distributed.Client(self._cluster, set_as_default=False)
         return self._client
