@@ -45,7 +45,7 @@ from .errors import WallcalError, require
 #: Environment variable naming the scheduler address used when none is given.
 SCHEDULER_ENV = "WALLCAL_SCHEDULER"
 #: Seconds to wait for a scheduler to answer before giving up with a :class:`ClusterError`.
-CONNECT_TIMEOUT_S = 8.0
+CONNECT_TIMEOUT_S = 6.0
 #: ``scheduler="local"`` asks for a local cluster even when ``WALLCAL_SCHEDULER`` is set.
 LOCAL = "local"
 
