@@ -160,7 +160,12 @@ def test_pile_up_and_the_structure_verdict():
     assert not v["rejected"] and "No self-check fired" in v["statement"]
     pile = pd.DataFrame({"at lower edge": [0.0], "at upper edge": [0.7]}, index=["(rho c)[5,8]"])
     v = structure_verdict(checks, ok, pile)
-    assert v["rejected"] and "(rho c)[5,8] piles up at the upper edge" in v["statement"]
+    assert v["rejected"] and "pile up at the edge of their prior" in v["statement"]
+    assert "(rho c)[5,8] (70% at its upper edge)" in v["statement"]
+    many = pd.DataFrame({"at lower edge": np.linspace(0.3, 0.9, 8), "at upper edge": 0.0}, index=list("abcdefgh"))
+    v = structure_verdict(checks, ok, many)
+    assert "8 parameter(s) or combination(s)" in v["statement"] and "and 3 more" in v["statement"]
+    assert v["statement"].index("h (90%") < v["statement"].index("g (81%")  # the most piled-up first
     v = structure_verdict(checks, ok, ok, missing=["depth[T3A]"])
     assert v["rejected"] and "depth[T3A]" in v["statement"] and "wallcal diagnose" in v["statement"]
 

@@ -248,6 +248,7 @@ def _sample_interval(ev) -> float:
 #: the posterior mass within the outer PILE_BAND of the prior (each end) above which it "piles up" there
 PILE_BAND = 0.02
 PILE_FRACTION = 0.25
+PILES_SHOWN = 5  # the report names the most piled-up ones
 
 
 def residual_checks(study, space, ev, E: np.ndarray) -> pd.DataFrame:
@@ -333,15 +334,21 @@ def structure_verdict(checks: pd.DataFrame, summary: pd.DataFrame, combinations:
                 f"{t}: a smooth model error of {r['model error']:.3g} (lag-1 {r['lag-1']:.2f}) exceeds the sensor's "
                 f"noise ({0.5 * r['accuracy']:.3g}, half its stated accuracy)"
             )
-    for kind, table in (("parameter", summary), ("combination", combinations)):
+    piles = []
+    for table in (combinations, summary):
         for name, r in table.iterrows():
-            side = "lower" if r["at lower edge"] >= r["at upper edge"] else "upper"
             frac = max(r["at lower edge"], r["at upper edge"])
             if frac >= PILE_FRACTION:
-                reasons.append(
-                    f"{kind} {name} piles up at the {side} edge of its prior ({frac:.0%} of the posterior within "
-                    f"the outer {PILE_BAND:.0%} of the prior)"
-                )
+                side = "lower" if r["at lower edge"] >= r["at upper edge"] else "upper"
+                piles.append((frac, f"{name} ({frac:.0%} at its {side} edge)"))
+    if piles:
+        piles.sort(key=lambda p: -p[0])
+        shown = ", ".join(text for _, text in piles[:PILES_SHOWN])
+        more = f" and {len(piles) - PILES_SHOWN} more" if len(piles) > PILES_SHOWN else ""
+        reasons.append(
+            f"{len(piles)} parameter(s) or combination(s) pile up at the edge of their prior (at least "
+            f"{PILE_FRACTION:.0%} of the posterior within the outer {PILE_BAND:.0%} of the prior): {shown}{more}"
+        )
     if missing:
         reasons.append(
             "wallcal diagnose found that the data support " + ", ".join(missing) + ", which this structure lacks"
