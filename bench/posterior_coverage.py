@@ -280,7 +280,9 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
     return rows
 
 
-def coverage(names, temperings, steps, walkers, with_diagnose: bool, workdir: Path) -> pd.DataFrame:
+def coverage(
+    names, temperings, steps, walkers, with_diagnose: bool, workdir: Path, start_at: str = "diagnose"
+) -> pd.DataFrame:
     diagnose = diagnose_or_none() if with_diagnose else None
     if with_diagnose and diagnose is None:
         print("wallcal.analysis.diagnose is not available in this wallcal: the 'with diagnose' arm is skipped")
@@ -299,7 +301,8 @@ def coverage(names, temperings, steps, walkers, with_diagnose: bool, workdir: Pa
             rows.append({"campaign": name, **row})
             _show(rows[-1])
         if d is not None:
-            for row in sample(d.study, temperings, steps, walkers, label="with diagnose", start=d.x):
+            start = d.x if start_at == "diagnose" else None
+            for row in sample(d.study, temperings, steps, walkers, label="with diagnose", start=start):
                 rows.append({"campaign": name, "adopted": ", ".join(adopted), **row})
                 _show(rows[-1])
     return pd.DataFrame(rows)
@@ -357,6 +360,12 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=400)
     ap.add_argument("--walkers", type=int, default=72)
     ap.add_argument("--no-diagnose", action="store_true")
+    ap.add_argument(
+        "--start",
+        choices=("diagnose", "calibrate"),
+        default="diagnose",
+        help="start the 'with diagnose' posterior at diagnose's recalibrated optimum, or calibrate its study afresh",
+    )
     ap.add_argument("--speed", action="store_true", help="only time the 22-parameter posterior")
     ap.add_argument("--speed-steps", type=int, default=1000)
     ap.add_argument("--speed-walkers", type=int, help="default the posterior's (4 n)")
@@ -371,9 +380,12 @@ def main() -> None:
             return
         print(
             f"settings: {args.walkers} walkers x {args.steps} steps per posterior, temperings {args.tempering}, "
-            f"campaigns {args.campaigns}, calibration: the study's pso-hj"
+            f"campaigns {args.campaigns}, calibration: the study's pso-hj; the 'with diagnose' arm starts at "
+            f"{'diagnose' + chr(39) + 's recalibrated optimum' if args.start == 'diagnose' else 'a fresh calibration'}"
         )
-        df = coverage(args.campaigns, args.tempering, args.steps, args.walkers, not args.no_diagnose, workdir)
+        df = coverage(
+            args.campaigns, args.tempering, args.steps, args.walkers, not args.no_diagnose, workdir, args.start
+        )
         if args.csv:
             df.to_csv(args.csv, index=False)
         print()
