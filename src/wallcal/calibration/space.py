@@ -371,6 +371,20 @@ def parse_calibration(
     )
 
 
+def _parse_bounds(pt: Table, problems: Problems) -> tuple[float | None, float | None]:
+    """The ``bounds = [lower, upper]`` pair of a parameter table (None, None after a problem)."""
+    bounds = pt.raw("bounds")
+    if not (isinstance(bounds, list) and len(bounds) == 2):
+        problems.add(pt.at("bounds"), "must be a pair [lower, upper]" + ("" if pt.has("bounds") else "; missing"))
+        return None, None
+    lo = check_number(bounds[0], pt.at("bounds") + "[0]", problems)
+    hi = check_number(bounds[1], pt.at("bounds") + "[1]", problems)
+    if lo is not None and hi is not None and not hi > lo:
+        problems.add(pt.at("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
+        return None, None
+    return lo, hi
+
+
 def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=()):
     """One ``[[calibration.parameters]]`` table: (Parameter, (layer ids, probe or sensor)) or None."""
     has_layers, has_probe, has_sensor = pt.has("layers"), pt.has("probe"), pt.has("sensor")
@@ -382,16 +396,7 @@ def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=(
         return _parse_offset(pt, problems, wall, targets)
     prop = pt.str("property", choices=PROBE_PROPERTIES if has_probe else LAYER_PROPERTIES)
     kind = pt.str("bounds_kind", "relative" if has_layers else "absolute", choices=("relative", "absolute"))
-    bounds = pt.raw("bounds")
-    lo = hi = None
-    if not (isinstance(bounds, list) and len(bounds) == 2):
-        problems.add(pt.at("bounds"), "must be a pair [lower, upper]" + ("" if pt.has("bounds") else "; missing"))
-    else:
-        lo = check_number(bounds[0], pt.at("bounds") + "[0]", problems)
-        hi = check_number(bounds[1], pt.at("bounds") + "[1]", problems)
-        if lo is not None and hi is not None and not hi > lo:
-            problems.add(pt.at("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
-            lo = hi = None
+    lo, hi = _parse_bounds(pt, problems)
     if has_probe:
         name = pt.raw("probe")
         if not isinstance(name, str):
@@ -492,19 +497,10 @@ def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets):
     if not isinstance(name, str):
         problems.add(pt.at("sensor"), f"must be a sensor name (a string), got {describe(name)}")
         return None
-    bounds = pt.raw("bounds")
-    lo = hi = None
-    if not (isinstance(bounds, list) and len(bounds) == 2):
-        problems.add(pt.at("bounds"), "must be a pair [lower, upper]" + ("" if pt.has("bounds") else "; missing"))
-    else:
-        lo = check_number(bounds[0], pt.at("bounds") + "[0]", problems)
-        hi = check_number(bounds[1], pt.at("bounds") + "[1]", problems)
-        if lo is not None and hi is not None and not hi > lo:
-            problems.add(pt.at("bounds"), f"upper bound must exceed lower bound, got [{lo:g}, {hi:g}]")
-            lo = hi = None
-        elif lo is not None and hi is not None and not lo <= 0.0 <= hi:
-            problems.add(pt.at("bounds"), f"an offset's bounds must hold 0 (its base value), got [{lo:g}, {hi:g}]")
-            lo = hi = None
+    lo, hi = _parse_bounds(pt, problems)
+    if lo is not None and hi is not None and not lo <= 0.0 <= hi:
+        problems.add(pt.at("bounds"), f"an offset's bounds must hold 0 (its base value), got [{lo:g}, {hi:g}]")
+        lo = hi = None
     if name not in targets:
         problems.add(
             pt.at("sensor"),
