@@ -187,6 +187,32 @@ def test_evaluator_candidates_with_lambda_t_and_contact_parameters_equal_simulat
     assert abs(got - float(ev.objective(np.zeros((1, 2)))[0])) > 1e-3 * got
 
 
+def test_evaluator_sensor_offset_is_added_to_the_measured_signal(example_study):
+    """An ``offset`` parameter (sensor = NAME) corrects that target's measured signal: error = simulated -
+    (measured + offset), on that target only; by hand from `simulate` and the measured series."""
+    from wallcal import simulate
+    from wallcal.simulation import prepare
+
+    cal = copy.deepcopy(example_study.raw["calibration"])
+    target = cal["targets"][1]  # not the first: the offset must land on its own target's row
+    cal["parameters"] = [{"sensor": target, "property": "offset", "bounds": [-1.0, 1.0]}]
+    space = parse_space(example_study, cal)
+    ev = Evaluator(prepare(example_study), space)
+    X = np.array([[0.0], [0.3], [-0.2]])  # offset [K]
+    got = ev.objective(X)
+    np.testing.assert_array_equal(space.offsets(X)[:, space.targets.index(target)], X[:, 0])
+    assert np.count_nonzero(space.offsets(X)) == 2
+    res = simulate(example_study)
+    for (x,), g in zip(X, got, strict=True):
+        cse = 0.0
+        for t in space.targets:
+            shift = x if t == target else 0.0
+            cse += float(((res.simulated[t] - (res.measured[t] + shift)) ** 2).sum())
+        assert g == pytest.approx(cse, rel=1e-9)
+    assert abs(got[1] - got[0]) > 1e-3 * got[0]  # the offset moves the objective
+    assert ev.objective(np.array([[-0.3]]))[0] != pytest.approx(got[1], rel=1e-6)  # and not as its negative
+
+
 def test_missing_samples_are_left_out_of_every_sum(weighted_study):
     """Samples missing in the data (NaN) count in no sum: the CSE and RMSE over the valid samples only."""
     study, res = weighted_study
