@@ -152,7 +152,8 @@ def _at(sim: pd.DataFrame, name: str, ts: pd.Series) -> np.ndarray:
     return s.to_numpy(dtype=float)
 
 
-EXTENSIONS_22 = """
+# the two extensions both 22-parameter spaces add to the study's 18 parameters
+_PROBE_AND_CONTACT = """
 [[calibration.parameters]]
 probe = "T3A"
 property = "depth"
@@ -163,7 +164,11 @@ layers = ["3"]
 property = "contact_resistance"
 bounds = [0.0, 0.3]
 bounds_kind = "absolute"
+"""
 
+EXTENSIONS_22 = (
+    _PROBE_AND_CONTACT
+    + """
 [[calibration.parameters]]
 layers = ["3"]
 property = "conductivity_temperature_coefficient"
@@ -176,20 +181,11 @@ property = "conductivity_temperature_coefficient"
 bounds = [-0.01, 0.02]
 bounds_kind = "absolute"
 """
+)
 
-
-LINEAR_22 = """
-[[calibration.parameters]]
-probe = "T3A"
-property = "depth"
-bounds = [0.085, 0.115]
-
-[[calibration.parameters]]
-layers = ["3"]
-property = "contact_resistance"
-bounds = [0.0, 0.3]
-bounds_kind = "absolute"
-
+LINEAR_22 = (
+    _PROBE_AND_CONTACT
+    + """
 [[calibration.parameters]]
 layers = ["5"]
 property = "contact_resistance"
@@ -201,6 +197,7 @@ sensor = "T1A"
 property = "offset"
 bounds = [-1.0, 1.0]
 """
+)
 
 
 def study_of(name: str, workdir: Path) -> Path:
