@@ -87,3 +87,15 @@ def example_study():
     from wallcal import load_study
 
     return load_study(EXAMPLE)
+
+
+def assert_clean_error(code, cap, out, *fragments):
+    """A command's bad-input exit: code 2, one line ``wallcal: error: ...`` holding each fragment, and nothing
+    written at ``out`` (no output, no temporary, lock or cache file beside it)."""
+    assert code == 2, cap.err
+    err = cap.err.strip()
+    assert err.startswith("wallcal: error:") and "\n" not in err, err
+    for f in fragments:
+        assert f in err, err
+    assert not out.exists()
+    assert not list(out.parent.glob(f".{out.name}*")), "a temporary, lock or cache file was left behind"

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import EXAMPLE
+from conftest import EXAMPLE, assert_clean_error
 from wallcal import dump_wall, load_study
 from wallcal.building import COLUMNS, collect_walls, reference_building
 from wallcal.building.model import select_surfaces, with_wall
@@ -33,16 +33,6 @@ def _study(tmp_path, building: str = "") -> str:
     path = tmp_path / "study.toml"
     path.write_text(text + "\n" + building)
     return str(path)
-
-
-def _assert_clean_error(code, cap, out, *fragments):
-    assert code == 2, cap.err
-    err = cap.err.strip()
-    assert err.startswith("wallcal: error:") and "\n" not in err, err
-    for f in fragments:
-        assert f in err, err
-    assert not out.exists()
-    assert not list(out.parent.glob(f".{out.name}*")), "a temporary, lock or cache file was left behind"
 
 
 @pytest.fixture(scope="module")
@@ -253,7 +243,7 @@ def test_a_model_with_no_outdoor_wall(tmp_path, capsys):
             "--quiet",
         ]
     )
-    _assert_clean_error(code, capsys.readouterr(), out, "m.epJSON has no outdoor wall")
+    assert_clean_error(code, capsys.readouterr(), out, "m.epJSON has no outdoor wall")
 
 
 def test_an_unknown_surface_gets_did_you_mean(tmp_path, capsys):
@@ -271,7 +261,7 @@ def test_an_unknown_surface_gets_did_you_mean(tmp_path, capsys):
             "--quiet",
         ]
     )
-    _assert_clean_error(code, capsys.readouterr(), out, "'WALL_NROTH' is not a surface", "did you mean 'WALL_NORTH'")
+    assert_clean_error(code, capsys.readouterr(), out, "'WALL_NROTH' is not a surface", "did you mean 'WALL_NORTH'")
 
 
 def test_a_wall_file_that_does_not_parse(tmp_path, capsys):
@@ -290,13 +280,13 @@ def test_a_wall_file_that_does_not_parse(tmp_path, capsys):
             "--quiet",
         ]
     )
-    _assert_clean_error(code, capsys.readouterr(), out, "bad.toml")
+    assert_clean_error(code, capsys.readouterr(), out, "bad.toml")
 
 
 def test_a_weather_name_that_does_not_exist(tmp_path, capsys):
     out = tmp_path / "out"
     code = main(["building", _study(tmp_path), "--weather", "USA_IL_Chicago.epw", "--out", str(out), "--quiet"])
-    _assert_clean_error(code, capsys.readouterr(), out, "--weather: 'USA_IL_Chicago.epw'", "shipped:")
+    assert_clean_error(code, capsys.readouterr(), out, "--weather: 'USA_IL_Chicago.epw'", "shipped:")
 
 
 def test_a_measured_column_that_does_not_exist(tmp_path, capsys):
@@ -317,7 +307,7 @@ def test_a_measured_column_that_does_not_exist(tmp_path, capsys):
             "--quiet",
         ]
     )
-    _assert_clean_error(code, capsys.readouterr(), out, "--zone-column 'T_zon'", "did you mean 'T_zone'")
+    assert_clean_error(code, capsys.readouterr(), out, "--zone-column 'T_zon'", "did you mean 'T_zone'")
 
 
 def test_the_building_table_is_validated_with_key_paths(tmp_path):
@@ -386,7 +376,7 @@ def test_an_unreachable_scheduler_is_named_within_15_s(tmp_path, capsys):
         ]
     )
     assert time.perf_counter() - t < 15
-    _assert_clean_error(code, capsys.readouterr(), out, "tcp://127.0.0.1:9")
+    assert_clean_error(code, capsys.readouterr(), out, "tcp://127.0.0.1:9")
 
 
 @pytest.mark.slow

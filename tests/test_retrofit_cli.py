@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import assert_clean_error
 from retrofit_helpers import study_with_retrofit, write_epw, year_temperature
 from wallcal import dump_wall, load_study
 from wallcal.cli import main
@@ -27,16 +28,6 @@ def _run(tmp_path, capsys, retrofit_body: str, *extra, epw=None, wall_mu=True):
     code = main(["retrofit", str(study), "--out", str(out), "--quiet", *extra])
     cap = capsys.readouterr()
     return code, cap, out
-
-
-def _assert_clean_error(code, cap, out, *fragments):
-    assert code == 2, cap.err
-    err = cap.err.strip()
-    assert err.startswith("wallcal: error:") and "\n" not in err, err
-    for f in fragments:
-        assert f in err, err
-    assert not out.exists()
-    assert not list(out.parent.glob(".out*")), "a temporary or lock file was left behind"
 
 
 def test_retrofit_command_writes_the_contract_outputs(tmp_path, capsys):
@@ -82,12 +73,12 @@ def test_from_a_calibrate_output_uses_its_calibrated_wall(tmp_path, capsys):
     ],
 )
 def test_bad_variants(tmp_path, capsys, body, fragments):
-    _assert_clean_error(*_run(tmp_path, capsys, body), *fragments)
+    assert_clean_error(*_run(tmp_path, capsys, body), *fragments)
 
 
 def test_missing_mu_names_the_layers(tmp_path, capsys):
     code, cap, out = _run(tmp_path, capsys, OK_VARIANTS, wall_mu=False)
-    _assert_clean_error(code, cap, out, "'3'", "'9'", "vapour_resistance_factor (mu) is missing")
+    assert_clean_error(code, cap, out, "'3'", "'9'", "vapour_resistance_factor (mu) is missing")
     # without the condensation check the same wall runs
     code, cap, out = _run(tmp_path, capsys, "condensation_check = false\n" + OK_VARIANTS, wall_mu=False)
     assert code == 0, cap.err
@@ -98,13 +89,13 @@ def test_weather_file_with_missing_hours(tmp_path, capsys):
     path = write_epw(tmp_path / "w.epw", year_temperature(48))
     lines = path.read_text().splitlines()
     path.write_text("\n".join(lines[:30] + lines[33:]) + "\n")
-    _assert_clean_error(*_run(tmp_path, capsys, OK_VARIANTS, epw=path), "w.epw", "missing or repeated hours")
+    assert_clean_error(*_run(tmp_path, capsys, OK_VARIANTS, epw=path), "w.epw", "missing or repeated hours")
 
 
 def test_malformed_weather_file(tmp_path, capsys):
     path = tmp_path / "w.epw"
     path.write_text("LOCATION,x\nnot,an,epw\n")
-    _assert_clean_error(*_run(tmp_path, capsys, OK_VARIANTS, epw=path), "w.epw")
+    assert_clean_error(*_run(tmp_path, capsys, OK_VARIANTS, epw=path), "w.epw")
 
 
 def test_unknown_weather_name_lists_the_shipped_files(tmp_path, capsys):
@@ -112,7 +103,7 @@ def test_unknown_weather_name_lists_the_shipped_files(tmp_path, capsys):
     study = study_with_retrofit(tmp_path, '[retrofit]\nweather = "Chicago.epw"\n' + OK_VARIANTS)
     out = tmp_path / "out"
     code = main(["retrofit", str(study), "--out", str(out), "--quiet"])
-    _assert_clean_error(code, capsys.readouterr(), out, "Chicago.epw", "USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw")
+    assert_clean_error(code, capsys.readouterr(), out, "Chicago.epw", "USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw")
 
 
 def test_wall_and_from_exclude_each_other(tmp_path, capsys):
