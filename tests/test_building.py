@@ -400,3 +400,29 @@ def test_an_interrupted_command_resumes_from_its_finished_runs(tmp_path, capsys,
     assert "1/1, 1 from the cache" in err, err
     assert pd.read_csv(out / "building.csv")["heating_kWh"].iloc[0] > 0
     assert not cache.exists()  # the runs are in the output now
+
+
+def test_inside_a_commands_executor_the_runs_go_to_it(tmp_path, monkeypatch):
+    """`wallcal run` holds one executor (its --scheduler, its store of finished runs) for every stage: the
+    building's runs go to it, no second cluster is started."""
+    import wallcal.cluster
+    from wallcal.building import building
+    from wallcal.cluster import Executor
+
+    study = load_study(_study(tmp_path, '[building]\nweather = "' + CHICAGO + '"\nstart = "01-08"\nend = "01-08"\n'))
+
+    def no_second_cluster(*a, **k):
+        raise AssertionError("a second executor was started")
+
+    sent = []
+
+    def in_process(fn, tasks, **kw):
+        sent.append(len(tasks))
+        return [fn(t) for t in tasks]
+
+    monkeypatch.setattr(wallcal.cluster, "executor_from", no_second_cluster)
+    with Executor("local", workers=1, progress=False) as ex:  # started lazily: never, here
+        monkeypatch.setattr(ex, "map", in_process)
+        res = building(study, collect_walls(study))
+    assert sent == [1]
+    assert res.table()["heating_kWh"].iloc[0] > 0

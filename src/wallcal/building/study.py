@@ -274,8 +274,8 @@ def building(
     zone : str, optional
         The zone whose air is compared (default: the only conditioned zone).
     scheduler : str, optional
-        dask scheduler address (``--scheduler``); default ``WALLCAL_SCHEDULER``, else a local cluster
-        (:mod:`wallcal.cluster`).
+        dask scheduler address (``--scheduler``); default: the active executor of the calling command
+        (``wallcal run``), else ``WALLCAL_SCHEDULER``, else a local cluster (:mod:`wallcal.cluster`).
     cache_dir : path, optional
         Where finished runs are stored as they complete (by the hash of their inputs).
     resume : bool
@@ -365,12 +365,16 @@ def building(
                     "timeout": timeout,
                 }
             )
-    from ..cluster import executor_from
+    from ..cluster import current_executor, executor_from
 
-    with executor_from(
-        scheduler, cache_dir=cache_dir, resume=resume, progress=progress, label="EnergyPlus runs (building)"
-    ) as ex:
-        results = ex.map(run_building, tasks)
+    active = current_executor() if scheduler is None and cache_dir is None else None
+    if active is not None:  # inside a command's executor (wallcal run): its cluster, its --scheduler and store
+        results = active.map(run_building, tasks)
+    else:
+        with executor_from(
+            scheduler, cache_dir=cache_dir, resume=resume, progress=progress, label="EnergyPlus runs (building)"
+        ) as ex:
+            results = ex.map(run_building, tasks)
     figures = results[: len(walls)]
     res = BuildingResult(
         walls=list(walls),
