@@ -21,6 +21,7 @@ Campaigns (their walls and errors are printed):
 
     nice .venv/bin/python bench/posterior_coverage.py                  # all campaigns, both arms
     nice .venv/bin/python bench/posterior_coverage.py --campaigns visible offset --steps 600 --no-diagnose
+    nice .venv/bin/python bench/posterior_coverage.py --steps 1000 --no-without     # only the 'with diagnose' arm
 
 Also timed: the posterior of a 22-parameter space on the ``all`` campaign, ``--speed`` (target: under 2 minutes on
 2 cores): ``--speed-space lambdaT`` (the study's 18 plus a probe depth, a contact resistance and two lambda(T)
@@ -278,7 +279,14 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
 
 
 def coverage(
-    names, temperings, steps, walkers, with_diagnose: bool, workdir: Path, start_at: str = "diagnose"
+    names,
+    temperings,
+    steps,
+    walkers,
+    with_diagnose: bool,
+    workdir: Path,
+    start_at: str = "diagnose",
+    without_diagnose: bool = True,
 ) -> pd.DataFrame:
     diagnose = diagnose_or_none() if with_diagnose else None
     if with_diagnose and diagnose is None:
@@ -294,9 +302,10 @@ def coverage(
             d = diagnose(study)
             adopted = list(d.adopted)
             print(f"{name}: diagnose adopted {adopted or 'nothing'} in {time.perf_counter() - t:.0f} s", flush=True)
-        for row in sample(study, temperings, steps, walkers, missing=adopted, label="without diagnose"):
-            rows.append({"campaign": name, **row})
-            _show(rows[-1])
+        if without_diagnose or d is None:
+            for row in sample(study, temperings, steps, walkers, missing=adopted, label="without diagnose"):
+                rows.append({"campaign": name, **row})
+                _show(rows[-1])
         if d is not None:
             start = d.x if start_at == "diagnose" else None
             for row in sample(d.study, temperings, steps, walkers, label="with diagnose", start=start):
@@ -358,6 +367,9 @@ def main() -> None:
     ap.add_argument("--walkers", type=int, default=72)
     ap.add_argument("--no-diagnose", action="store_true")
     ap.add_argument(
+        "--no-without", action="store_true", help="skip the 'without diagnose' arm (only the study diagnose writes)"
+    )
+    ap.add_argument(
         "--start",
         choices=("diagnose", "calibrate"),
         default="diagnose",
@@ -381,7 +393,14 @@ def main() -> None:
             f"{'diagnose' + chr(39) + 's recalibrated optimum' if args.start == 'diagnose' else 'a fresh calibration'}"
         )
         df = coverage(
-            args.campaigns, args.tempering, args.steps, args.walkers, not args.no_diagnose, workdir, args.start
+            args.campaigns,
+            args.tempering,
+            args.steps,
+            args.walkers,
+            not args.no_diagnose,
+            workdir,
+            args.start,
+            without_diagnose=not args.no_without,
         )
         if args.csv:
             df.to_csv(args.csv, index=False)

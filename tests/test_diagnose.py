@@ -139,6 +139,7 @@ def test_candidates_proposed(null_campaign):
         "conductivity_temperature_coefficient[3]",  # insulation groups as the space ties them
         "conductivity_temperature_coefficient[5,8]",
         "conductivity_temperature_coefficient[7]",
+        "conductivity_temperature_coefficient[3,5,7,8]",  # and all of them sharing one coefficient
         "offset[T3A]",
         "offset[T2A]",
         "offset[T1A]",
@@ -163,6 +164,7 @@ def test_candidates_of_a_probe_inside_a_layer_and_of_a_flux(raw):
     assert half == pytest.approx(0.25 * np.std(y["qi"]), rel=1e-2) and half > 2 * 0.03 * np.sqrt(np.mean(y["qi"] ** 2))
     # lambda(T): insulation layers only (3, 5+8 tied, 7), never the LVL panels or the plasterboard
     assert sorted(n for n in ext if n.startswith("conductivity_temperature")) == [
+        "conductivity_temperature_coefficient[3,5,7,8]",
         "conductivity_temperature_coefficient[3]",
         "conductivity_temperature_coefficient[5,8]",
         "conductivity_temperature_coefficient[7]",
@@ -221,7 +223,7 @@ def test_no_structure_error_adopts_nothing(null_campaign, tmp_path):
     d = diagnose(st, progress=msgs.append)
     assert d.adopted == []
     assert not d.candidates["adopted"].any()
-    assert len(d.candidates) == 12  # the single candidates; no combination is useful
+    assert len(d.candidates) == 13  # the single candidates; no combination is useful
     assert (d.candidates["delta_bic"] > -ADOPT_DELTA).all()
     assert d.study.calibration.names == st.calibration.names
     assert "support the study's structure" in d.summary()

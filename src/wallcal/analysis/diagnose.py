@@ -54,6 +54,16 @@ COEFFICIENT_RANGE = 0.02
 #: OFFSET_SPREAD times the standard deviation of its measured signal
 OFFSET_ACCURACIES = 2.0
 OFFSET_SPREAD = 0.25
+#: prior sd of a target's constant sensor bias, integrated out of the criterion, as a share of its stated
+#: accuracy (a 95 % bound: its sd is about half of it; the posterior's error model)
+BIAS_ACCURACY_SHARE = 0.5
+#: extensions whose criterion lies within this of the best one's are tied: adopted together (Kass and Raftery:
+#: a BIC difference below 2 is "not worth more than a bare mention")
+TIE_DELTA = 2.0
+#: candidates whose criterion lies within this of a step's best are fitted to convergence before they are compared
+POLISH_MARGIN = 25.0
+#: the base structure's re-polish (and a close contender's) may take this many times the Jacobians of a candidate's
+BASE_JACOBIANS = 4
 #: Jacobians allowed in each warm-started recalibration
 MAX_JACOBIANS = 8
 #: relative change of the least-squares cost that ends a recalibration (a BIC change of 1 is about 2 / N)
@@ -66,12 +76,21 @@ CRITERION = "delta_bic"
 
 
 # ============================================================================ the criterion
-def ar1_loglike(e: np.ndarray, mask: np.ndarray) -> tuple[float, int, float]:
-    """Maximised conditional AR(1) Gaussian log-likelihood of one residual series.
+def ar1_loglike(e: np.ndarray, mask: np.ndarray, bias_sd: float = 0.0) -> tuple[float, int, float]:
+    """Maximised conditional AR(1) Gaussian log-likelihood of one residual series, a constant sensor bias with
+    a Gaussian prior integrated out.
 
-    The residuals e_t (zero mean: a bias is no part of the error model, so that it shows as misfit) follow
-    e_t = phi e_{t-1} + eta_t, eta ~ N(0, s^2). Conditioning on the first value of every gap-free run, the
-    log-likelihood over the m consecutive valid pairs, maximised over phi and s^2, is
+    The residuals follow e_t = b + u_t, u_t = phi u_{t-1} + eta_t, eta ~ N(0, s^2), with a constant bias
+    b ~ N(0, bias_sd^2) (the posterior's error model: a sensor's bias within its stated accuracy is part of
+    the error, not of the structure). Conditioning on the first value of every gap-free run, the m consecutive
+    valid pairs give innovations r_t - c b with r_t = e_t - phi e_{t-1} and c = 1 - phi; integrating b out
+    exactly,
+
+        log L = -m/2 ln(2 pi s^2) - sum (r_t - c b*)^2 / (2 s^2) - b*^2 / (2 bias_sd^2)
+                - 1/2 ln(1 + m c^2 bias_sd^2 / s^2),
+
+    b* = c sum r_t / (m c^2 + s^2 / bias_sd^2) the bias's posterior mean, maximised over phi and s^2 (by
+    alternating their closed-form updates with b*). With ``bias_sd`` 0 (no bias: it shows as misfit) this is
     -m/2 (ln(2 pi s^2) + 1) with phi = sum e_t e_{t-1} / sum e_{t-1}^2 and s^2 the mean squared innovation.
 
     Parameters
@@ -80,35 +99,66 @@ def ar1_loglike(e: np.ndarray, mask: np.ndarray) -> tuple[float, int, float]:
         Residuals [unit of the signal].
     mask : ndarray of bool, shape (n,)
         Valid samples.
+    bias_sd : float
+        Prior sd of the sensor's constant bias [unit of the signal]; 0: no bias.
 
     Returns
     -------
     (log L, m, phi)
     """
+    return _ar1_fit(e, mask, bias_sd)[:3]
+
+
+def _ar1_fit(e, mask, bias_sd=0.0) -> tuple[float, int, float, float, float]:
+    """:func:`ar1_loglike` and its innovation sd s and bias b*."""
     e = np.where(mask, e, 0.0)
     pair = mask[1:] & mask[:-1]
     m = int(pair.sum())
     if m < 2:
-        return 0.0, 0, 0.0
-    a, b = e[1:][pair], e[:-1][pair]
-    den = float(np.sum(b * b))
-    phi = float(np.clip(np.sum(a * b) / den, -0.999, 0.999)) if den > 0 else 0.0
-    s2 = max(float(np.mean((a - phi * b) ** 2)), 1e-300)
-    return -0.5 * m * (math.log(2 * math.pi * s2) + 1.0), m, phi
+        return 0.0, 0, 0.0, 1.0, 0.0
+    a, p = e[1:][pair], e[:-1][pair]
+
+    def ar(b):
+        den = float(np.sum((p - b) ** 2))
+        phi = float(np.clip(np.sum((a - b) * (p - b)) / den, -0.999, 0.999)) if den > 0 else 0.0
+        s2 = max(float(np.mean(((a - b) - phi * (p - b)) ** 2)), 1e-300)
+        return phi, s2
+
+    b = 0.0
+    phi, s2 = ar(b)
+    if not bias_sd > 0:
+        return -0.5 * m * (math.log(2 * math.pi * s2) + 1.0), m, phi, math.sqrt(s2), 0.0
+    t2 = float(bias_sd) ** 2
+    for _ in range(50):
+        c = 1.0 - phi
+        b_new = c * float(np.sum(a - phi * p)) / (m * c * c + s2 / t2)
+        phi, s2 = ar(b_new)
+        done = abs(b_new - b) <= 1e-9 * (abs(b_new) + math.sqrt(s2))
+        b = b_new
+        if done:
+            break
+    c = 1.0 - phi
+    b = c * float(np.sum(a - phi * p)) / (m * c * c + s2 / t2)
+    q = float(np.sum((a - phi * p - c * b) ** 2))
+    s2 = max(q / m, 1e-300)
+    ll = -0.5 * m * (math.log(2 * math.pi * s2) + 1.0) - 0.5 * b * b / t2 - 0.5 * math.log1p(m * c * c * t2 / s2)
+    return ll, m, phi, math.sqrt(s2), b
 
 
-def ar1_profile(E: np.ndarray, mask: np.ndarray) -> tuple[float, int, np.ndarray, np.ndarray]:
-    """The AR(1) fit of every target's residuals ``E`` (targets x times): (log L summed over the targets, N pairs,
-    phi per target, innovation sd per target)."""
+def ar1_profile(E: np.ndarray, mask: np.ndarray, bias_sd=None) -> tuple[float, int, np.ndarray, np.ndarray]:
+    """The AR(1) fit of every target's residuals ``E`` (targets x times), each with its sensor bias of prior sd
+    ``bias_sd[k]`` integrated out (None: no bias): (log L summed over the targets, N pairs, phi per target,
+    innovation sd per target)."""
     ll, n = 0.0, 0
     phi = np.zeros(E.shape[0])
     sd = np.ones(E.shape[0])
+    tau = np.zeros(E.shape[0]) if bias_sd is None else np.asarray(bias_sd, dtype=float)
     for k in range(E.shape[0]):
-        lk, mk, phi[k] = ar1_loglike(E[k], mask[k])
+        lk, mk, phi[k], sk, _ = _ar1_fit(E[k], mask[k], float(tau[k]))
         ll += lk
         n += mk
         if mk:
-            sd[k] = math.sqrt(math.exp(-2.0 * lk / mk - 1.0) / (2 * math.pi))
+            sd[k] = sk
     return ll, n, phi, sd
 
 
@@ -287,6 +337,7 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
         if not any(i in g for g in groups):
             groups.append((i,))
     taken = {i for p in space.parameters if p.property == "conductivity_temperature_coefficient" for i in p.layers}
+    eligible = []
     for g in groups:
         layers = [wall.layers[i] for i in g]
         if any(
@@ -298,11 +349,19 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
             for i, lay in zip(g, layers, strict=True)
         ):
             continue
-        base = {lay.conductivity_temperature_coefficient for lay in layers}
-        if len(base) != 1:
+        if len({lay.conductivity_temperature_coefficient for lay in layers}) == 1:
+            eligible.append(tuple(g))
+    # each group apart, and (with two or more) all of them sharing one coefficient: the coefficient is a property
+    # of the insulation's kind (fibre and gas; ISO 10456 gives one per material family), so one shared value is
+    # the simplest hypothesis, and the criterion weighs it against separate ones
+    shared = [tuple(sorted(i for g in eligible for i in g))] if len(eligible) > 1 else []
+    for g in eligible + shared:
+        f0s = {wall.layers[i].conductivity_temperature_coefficient for i in g}
+        if len(f0s) != 1:
             continue
-        f0 = base.pop()
+        f0 = f0s.pop()
         lab = ",".join(ids[i] for i in g)
+        what = "sharing one coefficient" if g in shared else "depending on temperature"
         out.append(
             Extension(
                 f"conductivity_temperature_coefficient[{lab}]",
@@ -313,7 +372,7 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
                     "bounds": [min(f0, 0.0), f0 + COEFFICIENT_RANGE],
                     "bounds_kind": "absolute",
                 },
-                f"conductivity of insulation layer(s) {lab} depending on temperature (lambda(T))",
+                f"conductivity of insulation layer(s) {lab} {what} (lambda(T))",
             )
         )
     for t in space.targets:
@@ -625,6 +684,39 @@ def refine(residuals, u0, max_jacobians: int = MAX_JACOBIANS, ftol: float = FTOL
     return u, runs
 
 
+def debiased_residuals(ev, X, bias_sd, noise) -> np.ndarray:
+    """The study's least-squares residuals with every target's constant sensor bias profiled out under its
+    prior: the objective sum_k w_k (sum_t (e_kt - b_k)^2 + noise_k^2 b_k^2 / bias_sd_k^2), minimised over b_k
+    in closed form, b_k = sum_t e_kt / (n_k + noise_k^2 / bias_sd_k^2) (b_k = 0 where bias_sd_k is 0).
+
+    The criterion integrates the same bias out, so the structure it scores is fitted under its own error
+    model: fitted on the raw errors, the wall's properties would absorb a sensor's bias.
+
+    Parameters
+    ----------
+    ev : Evaluator
+    X : ndarray, shape (c, n)
+        Parameter values [SI].
+    bias_sd, noise : ndarray, shape (n_targets,)
+        Prior sd of each target's bias and its noise sd [target unit].
+
+    Returns
+    -------
+    ndarray, shape (c, n_targets * n_times + n_targets)
+    """
+    from ..calibration.objective import residual_weights
+
+    e = ev.errors(np.atleast_2d(X))
+    w = np.sqrt(residual_weights(ev.space.objective, ev.n_valid, ev.weights, ev.scale))
+    tau = np.asarray(bias_sd, dtype=float)
+    has = tau > 0
+    ratio = np.where(has, np.asarray(noise, dtype=float) ** 2 / np.where(has, tau, 1.0) ** 2, np.inf)
+    b = np.einsum("ctk->ct", e) / (ev.n_valid + ratio)[None]  # e is 0 at missing samples
+    r = np.where(ev.mask[None], e - b[:, :, None], 0.0) * w[None, :, None]
+    prior = np.where(has, b * (np.asarray(noise) / np.where(has, tau, 1.0))[None], 0.0) * w[None]
+    return np.concatenate([r.reshape(e.shape[0], -1), prior], axis=1)
+
+
 class _Say:
     def __init__(self, progress):
         from ..calibration.algorithms import Progress
@@ -705,6 +797,7 @@ def diagnose(
     from ..calibration.space import parse_space, space_of
     from ..simulation import BATCH_NEEDS, prepare
     from ..study import parse_study
+    from .identifiability import sensor_sigma
 
     t0 = time.perf_counter()
     space = space_of(study)
@@ -726,7 +819,7 @@ def diagnose(
             evaluators[key] = Evaluator(prepared, sp)
         return evaluators[key]
 
-    def fit(tables: list[dict], names: tuple, x_start: dict, ll_before: float | None = None) -> _Fit:
+    def fit(tables: list[dict], names: tuple, x_start: dict, ll_before: float | None = None, jacobians=None) -> _Fit:
         """Recalibrate a structure from ``x_start`` (the study's objective, warm-started) and score it by its
         AR(1) log-likelihood: ``ll_before`` plus the gain of this fit over its starting point (the structure it
         extends, with the new parameters at their base values) - a contact link or the lambda(T) path changes the
@@ -737,26 +830,58 @@ def diagnose(
         ev = evaluator(sp)
         xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
         xs = np.clip(xs, sp.lower, sp.upper)
-        ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask)[0] if ll_before is not None else 0.0
-        u, n_runs = refine(lambda U: ev.residuals(sp.from_unit(U)), sp.to_unit(xs), max_jacobians, FTOL)
+        ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau)[0] if ll_before is not None else 0.0
+        u, n_runs = refine(
+            lambda U: debiased_residuals(ev, sp.from_unit(U), tau, noise),
+            sp.to_unit(xs),
+            jacobians or max_jacobians,
+            FTOL,
+        )
         x = sp.from_unit(u)
         E = ev.errors(x[None])[0]
         evaluations += n_runs + 2
-        ll, n, _, _ = ar1_profile(E, ev.mask)
+        ll, n, _, _ = ar1_profile(E, ev.mask, tau)
         if ll_before is not None:
             ll = ll_before + (ll - ll0)
         rmse = np.sqrt(np.einsum("tk,tk->t", E, E) / ev.n_valid)
         return _Fit(names, x, sp, -2.0 * ll + sp.n * math.log(max(n, 2)), rmse, ll)
 
+    # every target's constant sensor bias is part of the error model, as in the posterior: prior sd half the
+    # stated accuracy (a 95 % bound), integrated out of the criterion
+    ev_study = evaluator(space)
+    tau = np.array(
+        [
+            BIAS_ACCURACY_SHARE * sensor_sigma(study, t, ev_study.y[k][ev_study.mask[k]])
+            for k, t in enumerate(space.targets)
+        ]
+    )
+    tau = np.where(np.isfinite(tau) & (tau > 0), tau, 0.0)
+    E0 = ev_study.errors(x0[None])[0]
+    noise = np.array([float(np.std(E0[k][ev_study.mask[k]])) for k in range(len(tau))])
+    noise = np.where(np.isfinite(noise) & (noise > 0), noise, 1.0)
     say("recalibrating the study's structure (warm start)", force=True)
-    base = fit([], (), dict(zip(space.names, x0, strict=True)))
+    # the start is the optimum of the study's objective, which counts a sensor's bias as misfit: the base structure
+    # is re-polished to convergence under the criterion's error model, so that no candidate gains from that alone
+    base = fit([], (), dict(zip(space.names, x0, strict=True)), jacobians=BASE_JACOBIANS * max_jacobians)
     ev0 = evaluator(space)
-    _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask)
+    _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask, tau)
     resid = residual_analysis(ev0, base.x, prepared.times)
     y = {t: ev0.y[k][ev0.mask[k]] for k, t in enumerate(space.targets)}
     exts = [e for e in propose(study, space, resid, y) if kinds is None or e.kind in kinds]
     by_name = {e.name: e for e in exts}
     fits: dict[tuple, _Fit] = {}
+
+    def compatible(names) -> bool:
+        """No layer's lambda(T) twice (a group and the shared coefficient overlap)."""
+        seen: set = set()
+        for n in names:
+            t = by_name[n].table
+            if t.get("property") != "conductivity_temperature_coefficient":
+                continue
+            if seen & set(t["layers"]):
+                return False
+            seen |= set(t["layers"])
+        return True
 
     def score(names: tuple, warm: _Fit) -> _Fit:
         key = tuple(sorted(names))
@@ -767,20 +892,60 @@ def diagnose(
             )
         return fits[key]
 
+    polished: set = set()
+
+    def polish(f: _Fit) -> _Fit:
+        key = tuple(sorted(f.names))
+        if key in polished:
+            return fits[key]
+        polished.add(key)
+        say(f"polishing {' + '.join(f.names)} ({evaluations} simulations)")
+        fits[key] = fit(
+            [by_name[n].table for n in f.names],
+            f.names,
+            dict(zip(f.space.names, f.x, strict=True)),
+            f.ll,
+            jacobians=BASE_JACOBIANS * max_jacobians,
+        )
+        return fits[key]
+
     singles = {e.name: score((e.name,), base) for e in exts}
     useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
     current = base
     adopted: tuple = ()
+    tied: list = []
     while len(adopted) < max_adopted:
         if not adopted:
             trials = [singles[n] for n in useful]
         else:
-            trials = [score(adopted + (n,), current) for n in [n for n in useful if n not in adopted][:MAX_TRIALS]]
+            pool = [n for n in useful if n not in adopted and compatible(adopted + (n,))][:MAX_TRIALS]
+            trials = [score(adopted + (n,), current) for n in pool]
         if not trials:
             break
+        # the close contenders are fitted to convergence before they are compared: a probe depth or a contact
+        # link moves slowly in a few Jacobians, and the ranking of near-equals must not depend on that
+        first = min(f.bic for f in trials)
+        trials = [polish(f) if f.bic <= first + POLISH_MARGIN else f for f in trials]
         best = min(trials, key=lambda f: f.bic)
         if best.bic > current.bic - ADOPT_DELTA:
             break
+        # extensions that explain the misfit as well as the best one (within TIE_DELTA): the data cannot choose
+        # between them, so all are adopted and the posterior averages over them, rather than being conditional on
+        # an arbitrary choice
+        new = [n for n in best.names if n not in adopted]
+        ties = [
+            n
+            for f in sorted(trials, key=lambda f: f.bic)
+            if f is not best and f.bic <= best.bic + TIE_DELTA
+            for n in f.names
+            if n not in adopted and n not in new
+        ]
+        ties = [n for n in dict.fromkeys(ties) if compatible(best.names + tuple(new) + (n,))]
+        if ties and len(best.names) + len(ties) <= max_adopted:
+            both = score(best.names + tuple(ties), best)
+            if both.bic <= current.bic - ADOPT_DELTA:
+                tied.append((new + ties, both.bic - best.bic))
+                best = both
         current = best
         adopted = best.names
     rows = []
@@ -809,6 +974,12 @@ def diagnose(
         + (", ".join(adopted) if adopted else "none")
     )
     notes = [f"Started from {origin}."]
+    for names, cost in tied:
+        notes.append(
+            f"{' and '.join(names)} explain the misfit equally well (criterion within {TIE_DELTA:g}): the data cannot "
+            f"choose between them, so both are adopted (criterion {cost:+.1f} against one alone) and the posterior "
+            "averages over them."
+        )
     if prepared.note:
         notes.append(prepared.note)
     return Diagnosis(
