@@ -109,6 +109,8 @@ def make_campaign(
     probe_depths: dict | None = None,
     contact: dict | None = None,
     conductivity: dict | None = None,
+    coefficient: dict | None = None,
+    bias: dict | None = None,
     noise: float = 0.05,
     days: float = 3.0,
     warmup_days: float = 2.0,
@@ -124,6 +126,10 @@ def make_campaign(
         Layer id -> true contact resistance to the next layer [m2K/W].
     conductivity : dict, optional
         Layer id -> true conductivity [W/(m K)] (within the study's bounds).
+    coefficient : dict, optional
+        Layer id -> true conductivity temperature coefficient f [1/K] (lambda(T); the study's is 0).
+    bias : dict, optional
+        Probe name -> constant sensor bias added to its measured series [K].
     noise : float
         Standard deviation of the white sensor noise [K].
     """
@@ -136,6 +142,8 @@ def make_campaign(
     truth = nominal
     for lid, lam in (conductivity or {}).items():
         truth = truth.replace_layer(lid, conductivity=lam)
+    for lid, f in (coefficient or {}).items():
+        truth = truth.replace_layer(lid, conductivity_temperature_coefficient=f)
     for lid, r in (contact or {}).items():
         truth = truth.replace_layer(lid, contact_resistance=r)
     for name, d in (probe_depths or {}).items():
@@ -154,7 +162,7 @@ def make_campaign(
     rng = np.random.default_rng(seed)
     for name in ("T3A", "T2A", "T1A"):
         sim = res.simulated[name].reindex(meas.index)
-        meas[name] = sim.to_numpy() + noise * rng.standard_normal(len(meas))
+        meas[name] = sim.to_numpy() + (bias or {}).get(name, 0.0) + noise * rng.standard_normal(len(meas))
     meas.index.name = "timestamp"
     meas.reset_index().to_csv(
         folder / "measured.csv", index=False, float_format="%.4f", date_format="%Y-%m-%dT%H:%M:%S"

@@ -310,3 +310,86 @@ def test_calibrated_offset_cancels_a_sensor_bias(null_campaign, tmp_path):
     assert rm[("base", "T1A")] > 0.25
     assert rm[("calibrated", "T1A")] < 0.06
     assert any("calibrated sensor offsets" in n and "T1A -0." in n for n in res.notes)
+
+
+# ============================================================================ sensor biases and shared lambda(T)
+def test_ar1_loglike_integrates_the_bias_out():
+    """With a bias prior the criterion is the AR(1) likelihood with the bias integrated out, maximised over phi and
+    s: checked against a numerical integral over b and a general-purpose maximiser."""
+    from scipy import integrate, optimize
+
+    rng = np.random.default_rng(3)
+    n, tau = 400, 0.25
+    u = np.zeros(n)
+    for t in range(1, n):
+        u[t] = 0.4 * u[t - 1] + 0.1 * rng.standard_normal()
+    e = u + 0.3
+    mask = np.ones(n, bool)
+    mask[200] = False  # a gap restarts the process
+    pair = mask[1:] & mask[:-1]
+    a, p = e[1:][pair], e[:-1][pair]
+    m = len(a)
+
+    def loglike(phi, log_s):
+        s2 = math.exp(2 * log_s)
+        r = a - phi * p
+
+        def dens(b):
+            q = np.sum((r - (1 - phi) * b) ** 2)
+            return (
+                math.exp(-q / (2 * s2) + q0 / (2 * s2))
+                * math.exp(-(b**2) / (2 * tau**2))
+                / math.sqrt(2 * math.pi * tau**2)
+            )
+
+        q0 = np.sum((r - np.mean(r)) ** 2)
+        val, _ = integrate.quad(dens, -3, 3, points=[np.mean(r) / (1 - phi)], limit=200)
+        return -0.5 * m * math.log(2 * math.pi * s2) - q0 / (2 * s2) + math.log(val)
+
+    best = optimize.minimize(
+        lambda v: -loglike(*v),
+        [0.4, math.log(0.1)],
+        method="Nelder-Mead",
+        options={"xatol": 1e-8, "fatol": 1e-9, "maxiter": 4000},
+    )
+    ll, mm, phi = ar1_loglike(e, mask, bias_sd=tau)
+    assert mm == m
+    # the closed-form updates maximise the joint density of (phi, s, b); the marginal's log-determinant term is
+    # left out of that maximisation, which costs a few thousandths
+    assert -best.fun - 0.01 < ll <= -best.fun + 1e-6
+    assert phi == pytest.approx(best.x[0], abs=0.01)
+    # the bias is explained by the error model: far better than without it, and bias_sd=0 is the plain AR(1)
+    assert ll > ar1_loglike(e, mask)[0] + 10
+    assert ar1_loglike(e, mask, bias_sd=0.0) == ar1_loglike(e, mask)
+
+
+def test_a_sensor_bias_does_not_hide_the_contact(tmp_path):
+    """Biases within the thermocouples' accuracy (T1A +0.25 K, T2A -0.2 K) next to a contact resistance between
+    layers 3 and 4: the criterion integrates each sensor's bias out (the posterior's error model) and the fit
+    profiles it, so the wall's properties do not absorb the biases and no offset stands in for the contact."""
+    st = load_study(
+        make_campaign(
+            tmp_path / "biased", contact={"3": 0.15}, conductivity=TRUE_LAMBDA, bias={"T1A": 0.25, "T2A": -0.2}
+        )
+    )
+    d = diagnose(st, kinds=("contact_resistance", "offset"))
+    assert d.adopted == ["contact_resistance[3]"]
+    assert d.x["contact_resistance[3]"] == pytest.approx(0.15, rel=0.1)
+    c = d.candidates.set_index("extension")
+    assert (c.loc[[n for n in c.index if n.startswith("offset")], "delta_bic"] > -ADOPT_DELTA).all()
+
+
+@pytest.mark.slow
+def test_shared_lambda_t_adopted(tmp_path):
+    """The same lambda(T) coefficient in every mineral-wool layer: the shared coefficient (one parameter) is
+    adopted, not the separate groups, and the value recovered."""
+    st = load_study(
+        make_campaign(
+            tmp_path / "lambdaT",
+            conductivity=TRUE_LAMBDA,
+            coefficient={lid: 0.008 for lid in ("3", "5", "7", "8")},
+        )
+    )
+    d = diagnose(st, kinds=("conductivity_temperature_coefficient",))
+    assert d.adopted == ["conductivity_temperature_coefficient[3,5,7,8]"]
+    assert d.x["conductivity_temperature_coefficient[3,5,7,8]"] == pytest.approx(0.008, rel=0.15)
