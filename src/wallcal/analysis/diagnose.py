@@ -5,19 +5,23 @@ daily pattern), proposes structural extensions of the calibration's parameter sp
 
 - ``depth[P]``: the depth of probe P (a sensor placed a few millimetres off its nominal depth),
 - ``contact_resistance[L]``: a contact resistance at each layer interface next to a target probe,
-- ``conductivity_temperature_coefficient[L...]``: lambda(T) of each insulation layer or tied group,
-- ``offset[S]``: a constant offset of target sensor S (its bias),
+- ``conductivity_temperature_coefficient[L...]``: lambda(T) of each insulation layer or tied group, and of all
+  of them sharing one coefficient,
+- ``offset[S]``: a constant offset of target sensor S beyond the bias its accuracy allows,
 
 and scores each, and each useful combination, by recalibrating warm-started from the calibrated point
-(the study's objective, bounded Levenberg-Marquardt: :func:`refine`; each Jacobian one engine batch). The score
-is the Bayesian information criterion on the AR(1) likelihood of the residuals at the recalibrated point (see
-:func:`ar1_loglike` and ``docs/identifiability.md``, "Choosing the model structure"):
+(the study's objective with each target's sensor bias profiled out, :func:`debiased_residuals`; bounded
+Levenberg-Marquardt: :func:`refine`; each Jacobian one engine batch). The score is the Bayesian information
+criterion on the AR(1) likelihood of the residuals at the recalibrated point, each target's constant sensor bias
+integrated out under the posterior's prior N(0, (accuracy/2)^2) (see :func:`ar1_loglike` and
+``docs/identifiability.md``, "Choosing the model structure"):
 
-    BIC = -2 sum_k log L_k(AR(1), phi_k and sigma_k at their maximum) + p ln N
+    BIC = -2 sum_k log L_k(AR(1) + bias, phi_k and sigma_k at their maximum) + p ln N
 
 with p the calibration parameters and N the residual pairs over all targets. An extension (or a set) is
 adopted when it lowers BIC by at least :data:`ADOPT_DELTA` (10: "very strong" evidence) against the
-structure adopted so far (forward selection). The extended study (:attr:`Diagnosis.study`) is the
+structure adopted so far (forward selection; the close contenders of each step fitted to convergence first;
+extensions within :data:`TIE_DELTA` of the best adopted together). The extended study (:attr:`Diagnosis.study`) is the
 study with the adopted extensions added to its ``[calibration]`` table.
 """
 
@@ -37,7 +41,16 @@ import pandas as pd
 
 from ..errors import StudyError, WallcalError
 
-__all__ = ["ADOPT_DELTA", "Diagnosis", "Extension", "ar1_loglike", "diagnose", "propose", "residual_analysis"]
+__all__ = [
+    "ADOPT_DELTA",
+    "Diagnosis",
+    "Extension",
+    "ar1_loglike",
+    "debiased_residuals",
+    "diagnose",
+    "propose",
+    "residual_analysis",
+]
 
 #: BIC decrease needed to adopt an extension (Kass and Raftery: > 10 is very strong evidence)
 ADOPT_DELTA = 10.0
@@ -822,11 +835,11 @@ def diagnose(
         return evaluators[key]
 
     def fit(tables: list[dict], names: tuple, x_start: dict, ll_before: float | None = None, jacobians=None) -> _Fit:
-        """Recalibrate a structure from ``x_start`` (the study's objective, warm-started) and score it by its
-        AR(1) log-likelihood: ``ll_before`` plus the gain of this fit over its starting point (the structure it
-        extends, with the new parameters at their base values) - a contact link or the lambda(T) path changes the
-        discrete model slightly even at the base value, and that change is no evidence for the extension.
-        Without ``ll_before``: the log-likelihood at the fit."""
+        """Recalibrate a structure from ``x_start`` (the study's objective with the sensor biases profiled out,
+        warm-started) and score it by its AR(1) log-likelihood (biases integrated out): ``ll_before`` plus the
+        gain of this fit over its starting point (the structure it extends, with the new parameters at their base
+        values) - a contact link or the lambda(T) path changes the discrete model slightly even at the base value,
+        and that change is no evidence for the extension. Without ``ll_before``: the log-likelihood at the fit."""
         nonlocal evaluations
         sp = space if not tables else parse_space(study, _extended_raw(study, tables)["calibration"])
         ev = evaluator(sp)
