@@ -25,9 +25,11 @@ residuals against the sensors' stated accuracy, posterior mass piled up at the e
 When any of them fires, the report says plainly that the intervals are conditional on a structure the data
 reject.
 
-Priors are uniform on the calibration bounds; sampling happens in the unit box
-(the prior is flat there). emcee runs with ``vectorize=True``: each half-step of the
-ensemble is one engine batch. The chain is checkpointed atomically (``.npz``) every
+Priors are uniform on the calibration bounds. The ensemble samples the log of each positive parameter
+(:class:`LogCoordinates`; the prior's Jacobian added), where the structural flat directions are straight,
+and starts from the Laplace approximation of the posterior at the optimum (:func:`initial_walkers`), so that
+it spans the posterior's flat valleys from the first step. emcee runs with ``vectorize=True``: each half-step
+of the ensemble is one engine batch. The chain is checkpointed atomically (``.npz``) every
 few seconds and on Ctrl-C, so an interruption loses nothing and ``resume=True``
 continues.
 """
@@ -107,6 +109,45 @@ class AR1Likelihood:
         return out
 
 
+class LogCoordinates:
+    """The log-posterior over the sampling coordinates z: the log of each positive parameter, the unit coordinate
+    of the others (:func:`wallcal.analysis.identifiability.to_z`).
+
+    In z the structural flat directions (rho against c of a layer; without a heat flux, the common scale of every
+    conductivity and heat capacity) are straight lines, and a conductivity or capacity enters the model through
+    products and ratios, so the posterior is closer to Gaussian than in the unit box: the ensemble's moves, which
+    propose along straight differences between walkers, mix better. The prior stays uniform on the bounds: in z
+    its density is prod x_j over the log coordinates (the Jacobian dx/dz), added here.
+
+    Parameters
+    ----------
+    like : callable
+        Log-likelihood over unit coordinates, shape (c, n) -> (c,) (-inf outside the box).
+    space : ParameterSpace
+    """
+
+    def __init__(self, like, space):
+        from .identifiability import log_coordinates
+
+        self.like = like
+        self.space = space
+        self.log = log_coordinates(space)
+
+    def to_unit(self, Z):
+        Z = np.asarray(Z, dtype=float)
+        X = np.where(self.log, np.exp(np.where(self.log, Z, 0.0)), self.space.from_unit(Z))
+        return self.space.to_unit(X)
+
+    def from_unit(self, U):
+        from .identifiability import to_z
+
+        return to_z(self.space, self.space.from_unit(np.asarray(U, dtype=float)))
+
+    def __call__(self, Z):
+        Z = np.atleast_2d(Z)
+        return self.like(self.to_unit(Z)) + np.sum(np.where(self.log[None], Z, 0.0), axis=1)
+
+
 def lag1(e: np.ndarray, mask: np.ndarray) -> float:
     """Lag-1 autocorrelation of an error series about zero (valid consecutive pairs only)."""
     p = mask[1:] & mask[:-1]
@@ -167,7 +208,7 @@ def sandwich_inflation(G: np.ndarray, r: np.ndarray, bandwidth: int, rtol: float
     lam, V = np.linalg.eigh(H)
     keep = lam > rtol * max(float(lam.max()), 1e-300)
     if not keep.any():
-        return 1.0, 0, 0
+        return 1.0, 0
     W = V[:, keep] / np.sqrt(lam[keep])[None]
     Sw = W.T @ S  # score contributions along the identifiable directions, unit information each
     bandwidth = max(0, min(int(bandwidth), S.shape[1] // 4))
@@ -176,7 +217,79 @@ def sandwich_inflation(G: np.ndarray, r: np.ndarray, bandwidth: int, rtol: float
     return float(np.trace(M) / keep.sum()), int(keep.sum())
 
 
-def sandwich_weight(ev, space, x_start, sigma, phi, *, h: float = 1e-3, bandwidth: int | None = None) -> dict:
+@dataclass
+class Linearisation:
+    """The model linearised at a point: whitened residuals and their sensitivities (see :func:`linearise`).
+
+    Attributes
+    ----------
+    u0 : ndarray, shape (n,)
+        The point in unit coordinates.
+    G : ndarray, shape (n, targets, times)
+        Whitened sensitivities of the residuals (without their constant part) to the unit coordinates.
+    r : ndarray, shape (targets, times)
+        Whitened residuals (without their constant part) at ``u0``.
+    information : ndarray, shape (n, n)
+        Fisher information of the likelihood (AR(1) errors plus the constant sensor bias integrated out) about
+        the unit coordinates [-].
+    """
+
+    u0: np.ndarray
+    G: np.ndarray
+    r: np.ndarray
+    information: np.ndarray
+
+
+def linearise(ev, space, x_start, sigma, phi, bias_sd=None, *, h: float = 1e-3) -> Linearisation:
+    """Central-difference sensitivities of the residuals at ``x_start`` (one batch of 2n + 1 runs), whitened by
+    the AR(1) model of each target (:func:`whiten`; the constant part of each series, the sensor bias, removed),
+    and the likelihood's information.
+
+    The information of :class:`AR1Likelihood` about the parameters is, per target, D' (S + tau^2 1 1')^-1 D with
+    D the sensitivities, S the AR(1) covariance and tau the sd of the sensor bias integrated out:
+    Gw Gw' - tau^2 a a' / (1 + tau^2 q11) with Gw the whitened sensitivities, a = Gw 1w and q11 = 1w' 1w
+    (Sherman-Morrison, as in the likelihood).
+
+    Parameters
+    ----------
+    ev : Evaluator
+    space : ParameterSpace
+    x_start : ndarray
+        [SI]
+    sigma, phi : dict
+        Per target, as used by the likelihood.
+    bias_sd : dict, optional
+        Sd of the constant sensor bias per target (0 or missing: none).
+    h : float
+        Step in unit coordinates (one-sided at a bound).
+    """
+    bias_sd = bias_sd or {}
+    n = space.n
+    u0 = space.to_unit(np.asarray(x_start, dtype=float))
+    up = np.clip(u0[None] + h * np.eye(n), 0.0, 1.0)
+    um = np.clip(u0[None] - h * np.eye(n), 0.0, 1.0)
+    E = ev.errors(space.from_unit(np.vstack([u0[None], up, um])))
+    step = (up - um)[np.arange(n), np.arange(n)]
+    D = (E[1 : n + 1] - E[n + 1 :]) / step[:, None, None]
+    G = np.zeros_like(D)
+    r = np.zeros(E.shape[1:])
+    info = np.zeros((n, n))
+    for k, t in enumerate(space.targets):
+        m = ev.mask[k]
+        e = np.where(m, E[0, k] - E[0, k][m].mean(), 0.0)  # the constant part is the sensor bias
+        d = np.where(m[None], D[:, k] - D[:, k][:, m].mean(axis=1, keepdims=True), 0.0)
+        r[k] = whiten(e, m, phi[t], sigma[t])
+        G[:, k] = whiten(d, m, phi[t], sigma[t])
+        gw = whiten(np.where(m[None], D[:, k], 0.0), m, phi[t], sigma[t])
+        ow = whiten(m.astype(float), m, phi[t], sigma[t])
+        a, t2 = gw @ ow, float(bias_sd.get(t, 0.0)) ** 2
+        info += gw @ gw.T - t2 * np.outer(a, a) / (1.0 + t2 * float(ow @ ow))
+    return Linearisation(u0=u0, G=G, r=r, information=info)
+
+
+def sandwich_weight(
+    ev, space, x_start, sigma, phi, *, h: float = 1e-3, bandwidth: int | None = None, lin: Linearisation | None = None
+) -> dict:
     """Power w of the tempered likelihood, from the residuals at ``x_start`` (the optimum).
 
     The AR(1) likelihood assumes that its whitened residuals are independent with unit variance; its curvature
@@ -199,32 +312,20 @@ def sandwich_weight(ev, space, x_start, sigma, phi, *, h: float = 1e-3, bandwidt
     bandwidth : int, optional
         Newey-West window [samples]; default one day (the period of the forcing: a model error repeats from one
         day to the next), at most a quarter of the record.
+    lin : Linearisation, optional
+        :func:`linearise` at ``x_start`` with these ``sigma`` and ``phi``, when already made.
 
     Returns
     -------
     dict
         ``weight`` w, ``inflation`` tr(H^-1 J)/k, ``directions`` k, ``bandwidth`` [samples], ``window_s`` [s].
     """
-    n = space.n
-    u0 = space.to_unit(np.asarray(x_start, dtype=float))
-    up = np.clip(u0[None] + h * np.eye(n), 0.0, 1.0)
-    um = np.clip(u0[None] - h * np.eye(n), 0.0, 1.0)
-    E = ev.errors(space.from_unit(np.vstack([u0[None], up, um])))
-    step = (up - um)[np.arange(n), np.arange(n)]
-    D = (E[1 : n + 1] - E[n + 1 :]) / step[:, None, None]
+    lin = lin or linearise(ev, space, x_start, sigma, phi, h=h)
     dt = _sample_interval(ev)
     if bandwidth is None:
         bandwidth = int(round(86400.0 / dt)) if np.isfinite(dt) and dt > 0 else ev.mask.shape[1] // 8
     bandwidth = max(1, min(int(bandwidth), ev.mask.shape[1] // 4))
-    G = np.zeros_like(D)
-    r = np.zeros(E.shape[1:])
-    for k, t in enumerate(space.targets):
-        m = ev.mask[k]
-        e = np.where(m, E[0, k] - E[0, k][m].mean(), 0.0)  # the constant part is the sensor bias
-        d = np.where(m[None], D[:, k] - D[:, k][:, m].mean(axis=1, keepdims=True), 0.0)
-        r[k] = whiten(e, m, phi[t], sigma[t])
-        G[:, k] = whiten(d, m, phi[t], sigma[t])
-    inflation, k = sandwich_inflation(G, r, bandwidth)
+    inflation, k = sandwich_inflation(lin.G, lin.r, bandwidth)
     return {
         "weight": float(min(1.0, 1.0 / inflation)) if inflation > 0 else 1.0,
         "inflation": inflation,
@@ -641,24 +742,60 @@ def _stats(samples: np.ndarray, prior: np.ndarray, truth=None) -> dict:
 
 
 # ============================================================================ the run
-def initial_walkers(study, space, x_start, nw, spread, rng):
-    """Walkers around ``x_start`` (unit coordinates), spread along the known structural flat directions.
+def initial_walkers(space, x_start, nw, rng, information, weight: float = 1.0, tries: int = 100):
+    """Walkers drawn from the Laplace approximation of the posterior at ``x_start`` (unit coordinates).
 
-    Along a flat direction only the prior box limits the posterior; walkers started in a tiny ball would
-    need thousands of steps to diffuse along it, so they start spread over +-15 % of it.
+    The approximation is Gaussian in the analysis coordinates z (log of each positive parameter, else the unit
+    coordinate): mean z(``x_start``), precision ``weight`` x the likelihood's information plus the precision of
+    a Gaussian with the uniform prior's variance (which bounds the structural and the nearly flat directions).
+    Draws outside the prior box are drawn again (at most ``tries`` times, then clipped into it).
+
+    The ensemble then starts with the posterior's spread and orientation, along its flat valleys too: the
+    ensemble moves propose along differences between walkers, so walkers started in a small ball only creep
+    along a valley that spans the prior box (on the ``offset`` campaign of ``bench/posterior_coverage.py`` the
+    autocorrelation time grew from ~130 to ~500 steps as a chain so started spread over it).
+
+    Parameters
+    ----------
+    space : ParameterSpace
+    x_start : ndarray
+        [SI] (the calibrated optimum).
+    nw : int
+        Walkers.
+    rng : numpy Generator
+    information : ndarray, shape (n, n)
+        Fisher information about the unit coordinates at ``x_start`` (:attr:`Linearisation.information`).
+    weight : float
+        Power w of the tempered likelihood.
+
+    Returns
+    -------
+    ndarray, shape (nw, n)
+        Unit coordinates inside the box.
     """
-    from .identifiability import log_coordinates, structural_directions
+    from .identifiability import log_coordinates, prior_sd_z, to_z
 
-    with_flux = any(study.sensor(t).quantity == "heat_flux" for t in space.targets)
-    dirs = [d for _, _, d in structural_directions(space, study.wall, with_flux=with_flux)]
-    z0 = np.where(log_coordinates(space), np.log(np.abs(x_start) + 1e-300), 0.0)
-    Z = np.repeat(z0[None], nw, axis=0)
-    for d in dirs:
-        d = d / np.max(np.abs(d))
-        Z += rng.uniform(-0.15, 0.15, size=(nw, 1)) * d[None]
-    X = np.where(log_coordinates(space)[None], np.exp(Z), x_start[None])
-    U = space.to_unit(X) + spread * rng.standard_normal((nw, space.n))
-    return np.clip(U, 1e-3, 1 - 1e-3)
+    x_start = np.asarray(x_start, dtype=float)
+    lg = log_coordinates(space)
+    # du/dz: a log coordinate z = ln x moves u = (x - lo) / (hi - lo) by x / (hi - lo)
+    dudz = np.where(lg, x_start / (space.upper - space.lower), 1.0)
+    precision = weight * np.asarray(information) * np.outer(dudz, dudz) + np.diag(prior_sd_z(space) ** -2.0)
+    L = np.linalg.cholesky(precision)
+    z0 = to_z(space, x_start[None])[0]
+    U = np.full((nw, space.n), np.nan)
+    todo = np.arange(nw)
+    for _ in range(tries):
+        Z = z0[None] + np.linalg.solve(L.T, rng.standard_normal((space.n, len(todo)))).T
+        X = np.where(lg[None], np.exp(np.where(lg[None], Z, 0.0)), space.from_unit(Z))
+        Ui = space.to_unit(X)
+        ok = np.all((Ui > 0.0) & (Ui < 1.0), axis=1)
+        U[todo[ok]] = Ui[ok]
+        todo = todo[~ok]
+        if not len(todo):
+            break
+    if len(todo):
+        U[todo] = np.clip(Ui[~ok], 1e-3, 1 - 1e-3)
+    return U
 
 
 def checkpoint_path(out_dir) -> Path | None:
@@ -686,7 +823,6 @@ def posterior(
     walkers: int | None = None,
     steps: int = DEFAULT_STEPS,
     seed: int = 1,
-    init_spread: float = 0.02,
     out_dir=None,
     resume: bool = False,
     progress: bool = True,
@@ -713,8 +849,6 @@ def posterior(
     steps : int
         Ensemble steps (simulations = walkers x steps).
     seed : int
-    init_spread : float
-        Initial ball around ``x_start`` in unit coordinates.
     out_dir : path, optional
         The checkpoint ``.<name>.posterior-checkpoint.npz`` is kept next to it.
     resume : bool
@@ -768,8 +902,9 @@ def posterior(
     if tempering not in ("sandwich", "none"):
         raise WallcalError(f"tempering: {tempering!r} is not one of 'sandwich', 'none'")
     temp = {"kind": "none", "weight": 1.0}
+    lin = None if resume else linearise(ev, space, x_start, sig, ph, tau)
     if tempering == "sandwich" and not resume:
-        temp = {"kind": "sandwich", **sandwich_weight(ev, space, x_start, sig, ph)}
+        temp = {"kind": "sandwich", **sandwich_weight(ev, space, x_start, sig, ph, lin=lin)}
     like = AR1Likelihood(
         ev,
         [sig[t] for t in space.targets],
@@ -812,8 +947,14 @@ def posterior(
         p0 = prev_chain[-1]
         steps = max(0, steps - len(prev_chain))
     else:
-        p0 = initial_walkers(study, space, x_start, nw, init_spread, rng)
-    sampler = ensemble_sampler(like, nw, n, seed)
+        p0 = initial_walkers(space, x_start, nw, rng, lin.information, temp["weight"])
+    coords = LogCoordinates(like, space)
+    sampler = ensemble_sampler(coords, nw, n, seed)
+
+    def unit_chain():
+        z = sampler.get_chain()
+        return coords.to_unit(z.reshape(-1, n)).reshape(z.shape)
+
     prog = Progress("posterior (emcee)", enabled=progress)
     t0 = time.perf_counter()
     status = "complete"
@@ -821,12 +962,12 @@ def posterior(
     done = 0
     try:
         if steps > 0:
-            for _ in sampler.sample(p0, iterations=steps):
+            for _ in sampler.sample(coords.from_unit(p0), iterations=steps):
                 done += 1
                 if time.perf_counter() - last > 10.0:
                     _save(
                         ckpt,
-                        np.concatenate([prev_chain, sampler.get_chain()]),
+                        np.concatenate([prev_chain, unit_chain()]),
                         np.concatenate([prev_lp, sampler.get_log_prob()]),
                         meta,
                     )
@@ -837,7 +978,7 @@ def posterior(
                 )
     except KeyboardInterrupt:
         status = "interrupted"
-    chain = np.concatenate([prev_chain, sampler.get_chain()]) if done else prev_chain
+    chain = np.concatenate([prev_chain, unit_chain()]) if done else prev_chain
     logp = np.concatenate([prev_lp, sampler.get_log_prob()]) if done else prev_lp
     _save(ckpt, chain, logp, meta)
     seconds = time.perf_counter() - t0
@@ -870,8 +1011,8 @@ def posterior(
 
 
 def ensemble_sampler(like, walkers: int, n: int, seed: int):
-    """The emcee ensemble sampler of :func:`posterior`: vectorised log-probability ``like`` (unit coordinates),
-    differential-evolution moves (80 % DE, 20 % DE snooker), seeded."""
+    """The emcee ensemble sampler of :func:`posterior`: vectorised log-probability ``like`` (over the sampling
+    coordinates), differential-evolution moves (80 % DE, 20 % DE snooker), seeded."""
     import emcee
 
     sampler = emcee.EnsembleSampler(
