@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 import wallcal
-from wallcal.analysis.posterior import posterior
+from wallcal.analysis.posterior import DEFAULT_STEPS, posterior
 from wallcal.calibration import calibrate
 from wallcal.simulation import BATCH_NEEDS, prepare
 from wallcal.wallfile import dump_wall, load_wall
@@ -267,6 +267,9 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
                 "reasons": len(r.structure["reasons"]),
                 "calibration s": t_cal,
                 "posterior s": time.perf_counter() - t,
+                "acceptance": r.acceptance,
+                "tau max": float(np.nanmax(r.tau)),
+                "effective samples": effective_samples(r),
                 "missed": ", ".join(
                     r.combinations.index[
                         ~r.combinations["verdict"].str.startswith("not") & ~r.combinations["inside 95%"].astype(bool)
@@ -276,6 +279,11 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
             }
         )
     return rows
+
+
+def effective_samples(r) -> float:
+    """Effective posterior samples of a chain: walkers x steps after burn-in / the largest autocorrelation time."""
+    return r.chain.shape[1] * (r.chain.shape[0] - r.burn) / float(np.nanmax(r.tau))
 
 
 def coverage(
@@ -319,7 +327,9 @@ def _show(r: dict) -> None:
         f"{r['campaign']:8s} {r['arm']:17s} tempering {r['tempering']:8s} ({r['parameters']} parameters, "
         f"w {r['w']:.3f}): 50 % {r['inside 50%']}/{r['n']}, 95 % {r['inside 95%']}/{r['n']}; "
         f"structure {'REJECTED' if r['rejected'] else 'not rejected'} ({r['reasons']} reasons); "
-        f"calibration {r['calibration s']:.0f} s, posterior {r['posterior s']:.0f} s",
+        f"calibration {r['calibration s']:.0f} s, posterior {r['posterior s']:.0f} s (acceptance "
+        f"{r['acceptance']:.2f}, autocorrelation time {r['tau max']:.0f} steps, {r['effective samples']:.0f} "
+        "effective samples)",
         flush=True,
     )
     if r["missed"]:
@@ -351,10 +361,13 @@ def speed(workdir: Path, walkers: int | None, steps: int, space: str) -> None:
     r = posterior(study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=steps, progress=False)
     dt = time.perf_counter() - t
     kind = "lambda(T) walls: the engine's general path" if space == "lambdaT" else "linear walls: the modal path"
+    ess = effective_samples(r)
     print(
         f"posterior of a {r.space.n}-parameter space ({kind}): "
         f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps = {r.evaluations} simulations in {dt:.1f} s "
-        f"({r.evaluations / dt:.0f}/s) -> {'OK' if dt <= 120 else 'SLOW'} (target 120 s)"
+        f"({r.evaluations / dt:.0f}/s) -> {'OK' if dt <= 120 else 'SLOW'} (target 120 s); acceptance "
+        f"{r.acceptance:.2f}, autocorrelation time {np.nanmax(r.tau):.0f} steps, {ess:.0f} effective samples "
+        f"({ess / dt:.1f}/s)"
     )
     print(r.report())
 
@@ -363,8 +376,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--campaigns", nargs="+", default=["visible", *CAMPAIGNS])
     ap.add_argument("--tempering", nargs="+", default=["none", "sandwich"], choices=("none", "sandwich"))
-    ap.add_argument("--steps", type=int, default=400)
-    ap.add_argument("--walkers", type=int, default=72)
+    ap.add_argument("--steps", type=int, default=DEFAULT_STEPS, help="steps per posterior (default the posterior's)")
+    ap.add_argument("--walkers", type=int, help="default the posterior's (4 n)")
     ap.add_argument("--no-diagnose", action="store_true")
     ap.add_argument(
         "--no-without", action="store_true", help="skip the 'without diagnose' arm (only the study diagnose writes)"
@@ -388,7 +401,8 @@ def main() -> None:
             speed(workdir, args.speed_walkers, args.speed_steps, args.speed_space)
             return
         print(
-            f"settings: {args.walkers} walkers x {args.steps} steps per posterior, temperings {args.tempering}, "
+            f"settings: {args.walkers or '4 n'} walkers x {args.steps} steps per posterior, "
+            f"temperings {args.tempering}, "
             f"campaigns {args.campaigns}, calibration: the study's pso-hj; the 'with diagnose' arm starts at "
             f"{'diagnose' + chr(39) + 's recalibrated optimum' if args.start == 'diagnose' else 'a fresh calibration'}"
         )
