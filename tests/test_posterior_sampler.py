@@ -23,7 +23,7 @@ SIGMA, PHI, TAU = 0.5, 0.7, 0.4
 
 def _space(bounds):
     params = tuple(
-        Parameter(name=f"p{j}", property="conductivity", layers=(j,), probe=None, base=0.5 * (lo + hi), lower=lo, upper=hi)
+        Parameter(f"p{j}", "conductivity", (j,), None, base=0.5 * (lo + hi), lower=lo, upper=hi)
         for j, (lo, hi) in enumerate(bounds)
     )
     return ParameterSpace(parameters=params, targets=("T",))

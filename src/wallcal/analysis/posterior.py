@@ -502,6 +502,9 @@ class PosteriorResult:
     ----------
     chain : ndarray, shape (steps, walkers, n)
         Unit coordinates.
+    log_prob : ndarray, shape (steps, walkers)
+        Log posterior density of each chain entry, up to a constant, in the sampling coordinates
+        (:class:`LogCoordinates`).
     samples : ndarray, shape (m, n)
         Post-burn-in, thinned samples [SI].
     summary : DataFrame
