@@ -291,13 +291,11 @@ def _exact_factors(coef, tref, g_ref, Tmid, Gm):
 
 @njit(cache=True, fastmath=True)
 def _sinhc(u):
-    """sinh(x) / x for u = x^2 <= SINHC_U_MAX (degree-10 Taylor polynomial, relative error < 4e-18)."""
-    return 1.0 + u * (
-        1.0 / 6.0 + u * (1.0 / 120.0 + u * (1.0 / 5040.0 + u * (1.0 / 362880.0 + u * (1.0 / 39916800.0))))
-    )
+    """sinh(x) / x for u = x^2 <= SINHC_U_MAX (degree-6 Taylor polynomial, relative error < 3e-18)."""
+    return 1.0 + u * (1.0 / 6.0 + u * (1.0 / 120.0 + u * (1.0 / 5040.0)))
 
 
-SINHC_U_MAX = 0.0625  # |x| <= 0.25, i.e. |f (T_a - T_b)| <= 0.5
+SINHC_U_MAX = 1e-3  # |x| <= 0.0316, i.e. |f (T_a - T_b)| <= 0.063 (13.7 K across a link at f = 0.0046 1/K)
 
 
 @njit(cache=True)
@@ -327,15 +325,15 @@ def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab
 
 
 @njit(cache=True)
-def _step_conductance(f, dtm_a, dtm_b, gm, tm_a, tm_b):
-    """One link's step of :func:`_run_one`'s first lambda(T) pass: its factor Gm brought to the new
-    mid-step temperatures, ``Gm exp(f (dtm_a + dtm_b) / 2)`` (polynomial), the Kirchhoff-mean
-    conductance ``g* = Gm sinh(x)/x`` with ``x = f (tm_a - tm_b) / 2`` (polynomial), and 1 when
-    either argument is beyond its polynomial's range (else 0). Inlined into the vectorised pass."""
-    x = f * (0.5 * (dtm_a + dtm_b))
+def _step_conductance(fh, dtm_a, dtm_b, gm, tm_a, tm_b):
+    """One link's step of :func:`_run_one`'s first lambda(T) pass (``fh = f / 2``): its factor Gm brought
+    to the new mid-step temperatures, ``Gm exp(f (dtm_a + dtm_b) / 2)`` (polynomial), the
+    Kirchhoff-mean conductance ``g* = Gm sinh(x)/x`` with ``x = f (tm_a - tm_b) / 2`` (polynomial), and
+    1 when either argument is beyond its polynomial's range (else 0). Inlined into the vectorised pass."""
+    x = fh * (dtm_a + dtm_b)
     gm = gm * _exp_step(x)
-    d = f * (tm_a - tm_b)
-    u = 0.25 * d * d
+    d = fh * (tm_a - tm_b)
+    u = d * d
     return gm, gm * _sinhc(u), 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
 
 
@@ -359,15 +357,17 @@ def _drift_limits(cap, theta, dt, bc_type, lim):
 
 
 @njit(cache=True)
-def _set_factorised(g0, gs, theta, drift, lim, thg, tol):
-    """Take ``g*`` as the factorised conductances ``g0``: ``thg = theta g0`` and the drift tolerance
-    ``tol = min(drift g0, lim)``, how far a conductance may drift from ``g0`` before refactoring: the
-    fraction ``drift`` of it (default 2 %), and at most ``lim`` (:func:`_drift_limits`) so that the
-    explicit correction stays far inside its stability limit."""
+def _set_factorised(g0, gs, theta, drift, lim, thg, glo, ghi):
+    """Take ``g*`` as the factorised conductances ``g0``: ``thg = theta g0`` and the band
+    ``[glo, ghi] = g0 -+ tol`` that a conductance may drift in before refactoring, with the drift
+    tolerance ``tol = min(drift g0, lim)``: the fraction ``drift`` of it (default 2 %), and at most
+    ``lim`` (:func:`_drift_limits`) so that the explicit correction stays far inside its stability limit."""
     for lnk in range(g0.shape[0]):
         g0[lnk] = gs[lnk]
         thg[lnk] = theta[lnk] * g0[lnk]
-        tol[lnk] = min(drift * g0[lnk], lim[lnk])
+        tol = min(drift * g0[lnk], lim[lnk])
+        glo[lnk] = g0[lnk] - tol
+        ghi[lnk] = g0[lnk] + tol
 
 
 @njit(cache=True, fastmath={"contract"})
@@ -416,7 +416,8 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
     gs = g_ref.copy()  # conductances of the current step (lambda(T))
     thg = np.empty(n_links)  # theta g0: implicit part of the factorised link conductances
     omth = np.empty(n_links)  # 1 - theta
-    tol = np.zeros(n_links)
+    glo = np.zeros(n_links)  # drift band of the factorised conductances (lambda(T), _set_factorised)
+    ghi = np.zeros(n_links)
     lim = np.zeros(n_links)
     inv = np.zeros(mm)
     f1 = np.zeros(mm)
@@ -446,6 +447,14 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
     for lnk in range(n_links):
         Gm[lnk] = g_ref[lnk]
     has_table = False
+    fh = np.empty(n_links)  # f / 2 (exponential law; 0 for the other links)
+    nl_lo = uint64(n_links)  # the range [nl_lo, nl_hi) of links from the first to the last lambda(T) link
+    nl_hi = uint64(0)
+    for lnk in range(n_links):
+        fh[lnk] = 0.5 * coef[lnk]
+        if kind[lnk] != LAMBDA_CONSTANT:
+            nl_lo = min(nl_lo, uint64(lnk))
+            nl_hi = uint64(lnk + 1)
     th0 = theta[0] if n_links > 0 else 0.5
     om0 = 1.0 - th0
     uniform_theta = True  # one theta for every link (the fused lambda(T) pass)
@@ -479,7 +488,7 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
         _exact_factors(coef, tref, g_ref, Tmid, Gm)
         _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm)
         _drift_limits(cap, theta, dt, bc_type, lim)
-        _set_factorised(g0, gs, theta, drift, lim, thg, tol)
+        _set_factorised(g0, gs, theta, drift, lim, thg, glo, ghi)
     # constant conductances: the explicit link fluxes are gex (T^n_a - T^n_b)
     gex = np.empty(n_links)
     for lnk in range(n_links):
@@ -515,37 +524,43 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
             # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
             fresh = n == 0  # E still to be formed from the array gs (first step: g* = g0 from the start)
             if n > 0:
-                # lambda(T): one pass over the links (vectorised: no branches, integer counts) brings
-                # the link factors Gm to this step's mid-step temperature, Gm *= exp(f dT_m) (a
-                # polynomial; dT_m: the change of the link's mean mid-step temperature, from the
-                # previous step's last pass), forms the Kirchhoff-mean conductances g* = Gm sinh(x)/x
-                # (as _nonlinear_conductances), counts the factor updates and the links beyond the
-                # polynomials' ranges (n_big) and those whose g* drifted more than tol from g0, and,
-                # when every link has the same theta (reading few arrays keeps the pass vectorised),
-                # the explicit fluxes E too, without storing g*; the rare branches (exact factors,
-                # table laws, refactorisation) store g* and form E afterwards.
+                # lambda(T): one pass over the links from the first to the last lambda(T) link
+                # (vectorised: no branches, integer counts, unsigned indices) brings the link factors
+                # Gm to this step's mid-step temperature, Gm *= exp(f dT_m) (a polynomial; dT_m: the
+                # change of the link's mean mid-step temperature, from the previous step's last pass),
+                # forms the Kirchhoff-mean conductances g* = Gm sinh(x)/x (as _nonlinear_conductances),
+                # counts the factor updates and the links beyond the polynomials' ranges (n_big) and
+                # those whose g* left the drift band [glo, ghi] around g0, and, when every link has the
+                # same theta (reading few arrays keeps the pass vectorised), the explicit fluxes E too,
+                # without storing g*; links with constant conductivity outside that range take the
+                # linear E. The rare branches (exact factors, table laws, refactorisation) store g*
+                # and form E afterwards.
                 n_drift = 0
                 if uniform_theta:
-                    for lnk in range(n_links):
-                        gmk, gk, big = _step_conductance(
-                            coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
-                        )
+                    for lnk in range(nl_lo, nl_hi):
+                        l1 = lnk + uint64(1)
+                        gmk, gk, big = _step_conductance(fh[lnk], DB[lnk], DB[l1], Gm[lnk], Tmid[lnk], Tmid[l1])
                         Gm[lnk] = gmk
                         n_big += big
-                        g0k = g0[lnk]
-                        n_drift += 1 if abs(gk - g0k) > tol[lnk] else 0
-                        dp = Tnew[lnk] - Tnew[lnk + 1]
-                        Epad[lnk + 1] = gk * (th0 * dp + om0 * (Tn[lnk] - Tn[lnk + 1])) - (th0 * g0k) * dp
+                        n_drift += 1 if (gk > ghi[lnk]) | (gk < glo[lnk]) else 0
+                        dp = Tnew[lnk] - Tnew[l1]
+                        Epad[l1] = gk * (th0 * dp + om0 * (Tn[lnk] - Tn[l1])) - thg[lnk] * dp
+                    for lnk in range(nl_lo):
+                        l1 = lnk + uint64(1)
+                        Epad[l1] = gex[lnk] * (Tn[lnk] - Tn[l1])
+                    for lnk in range(nl_hi, uint64(n_links)):
+                        l1 = lnk + uint64(1)
+                        Epad[l1] = gex[lnk] * (Tn[lnk] - Tn[l1])
                 else:
                     fresh = True
                     for lnk in range(n_links):
                         gmk, gk, big = _step_conductance(
-                            coef[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
+                            fh[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
                         )
                         Gm[lnk] = gmk
                         n_big += big
                         gs[lnk] = gk
-                        n_drift += 1 if abs(gk - g0[lnk]) > tol[lnk] else 0
+                        n_drift += 1 if (gk > ghi[lnk]) | (gk < glo[lnk]) else 0
                 if n % 1024 == 0 or n_big > 0 or has_table:  # exact factors (and closed form, table laws)
                     fresh = True
                     _exact_factors(coef, tref, g_ref, Tmid, Gm)
@@ -554,15 +569,15 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
                     )
                     n_drift = 0
                     for lnk in range(n_links):
-                        if abs(gs[lnk] - g0[lnk]) > tol[lnk]:
+                        if (gs[lnk] > ghi[lnk]) | (gs[lnk] < glo[lnk]):
                             n_drift += 1
                 elif n_drift > 0 and not fresh:  # g* of the fused pass, stored for the refactorisation
                     fresh = True
                     for lnk in range(n_links):
-                        d = coef[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
-                        gs[lnk] = Gm[lnk] * _sinhc(0.25 * d * d)
+                        d = fh[lnk] * (Tmid[lnk] - Tmid[lnk + 1])
+                        gs[lnk] = Gm[lnk] * _sinhc(d * d)
                 if n_drift > 0 and m > 0:
-                    _set_factorised(g0, gs, theta, drift, lim, thg, tol)
+                    _set_factorised(g0, gs, theta, drift, lim, thg, glo, ghi)
                     _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, wa, wb, inv, f1, f2)
                     _solve_coefficients(inv, f1, f2, k, m, sc, S)
             if fresh:
