@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from wallcal.engines import boundary, kernels
-from wallcal.grid import LAMBDA_EXPONENTIAL
+from wallcal.grid import LAMBDA_CONSTANT, LAMBDA_EXPONENTIAL
 
 DT = 60.0
 
@@ -73,6 +73,7 @@ def _reference(cap, g_ref, f, tref, ue, ui, T0, drift=0.02, theta=0.5):
 
 
 def _kernel(cap, g_ref, f, tref, ue, ui, T0, drift=0.02):
+    """The kernel's run; links with f = 0 get the constant law (the lambda(T) pass skips those at the ends)."""
     n_nodes = cap.size
     n_links = n_nodes - 1
     n_steps = ue.size - 1
@@ -80,7 +81,7 @@ def _kernel(cap, g_ref, f, tref, ue, ui, T0, drift=0.02):
     nodes = np.arange(n_nodes, dtype=np.int64)[None, :]
     wall = (one(cap), one(g_ref), one(np.full(n_links, 0.5)))
     laws = (
-        np.full(n_links, LAMBDA_EXPONENTIAL, dtype=np.int64),
+        np.where(f != 0.0, LAMBDA_EXPONENTIAL, LAMBDA_CONSTANT).astype(np.int64),
         one(f),
         np.ascontiguousarray(tref, dtype=float),
         np.zeros(n_links, dtype=np.int64),
@@ -112,6 +113,7 @@ def _wall(n_nodes, f):
         "steep",  # steep profile, large f: x^2 across the sinh(x)/x polynomial's range and beyond
         "jumps",  # 8 K jumps of the surface temperature: exact steps, then the polynomials again
         "layers",  # lambda(T) layers with different f and T_ref beside a constant one
+        "constant ends",  # constant layers at both faces, outside the lambda(T) pass's range of links
     ],
 )
 def test_lambda_step_equals_closed_form_scheme(case):
@@ -130,6 +132,10 @@ def test_lambda_step_equals_closed_form_scheme(case):
         ue = 5.0 + 8.0 * ((t // 7200.0) % 2) if case == "jumps" else 5.0 + 8.0 * np.sin(2 * np.pi * t / 86400.0)
         ui = np.full(n_steps + 1, 20.0)
     cap, g_ref, coef, tref = _wall(n_nodes, f)
+    if case == "constant ends":
+        coef[:3] = 0.0
+        coef[-2:] = 0.0
+        g_ref[:3] *= 5.0
     if case == "layers":
         coef[4:8] = 0.0
         coef[8:] = 0.012

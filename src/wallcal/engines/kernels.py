@@ -22,7 +22,7 @@ drifts from ``g0``. The exponential law's Kirchhoff mean is evaluated as ``Gm si
 ``Gm = g_ref exp(f ((T_a + T_b)/2 - T_ref))``: equal to ``g_ref (E_a - E_b)/(f (T_a - T_b))`` but
 without the division or the cancellation of ``E_a - E_b``. ``Gm`` is updated multiplicatively with
 a polynomial of ``f dT_m`` (exact ``exp`` when a step changes a temperature a lot, and every 1024
-steps); ``sinh(x)/x`` is a polynomial in ``x^2`` (closed form beyond ``|x| = 1/4``).
+steps); ``sinh(x)/x`` is a polynomial in ``x^2`` (closed form beyond ``x^2 = 1e-3``).
 
 Speed notes: each pass over the links or nodes reads and writes few arrays, which keeps LLVM's
 run-time aliasing checks under its limit so that the pass vectorises; the twisted solve is written
