@@ -28,6 +28,7 @@ outputs are smooth functions of the properties.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -84,6 +85,17 @@ class Grid:
     @property
     def n_links(self) -> int:
         return len(self.link_layer)
+
+    @functools.cached_property
+    def link_kinds(self) -> tuple[np.ndarray, ...]:
+        """Indices that :func:`assemble` uses, computed once per grid: the massive links, their layers,
+        intervals and first nodes; the contact links and the layers whose contact resistance they carry;
+        the no-mass links and their layers."""
+        ll, n = self.link_layer, self.link_intervals
+        massive = np.nonzero((ll >= 0) & (n > 0.0))[0]
+        contact = np.nonzero(ll < 0)[0]
+        nomass = np.nonzero((ll >= 0) & (n == 0.0))[0]
+        return massive, ll[massive], n[massive], contact, self.link_contact_of[contact], nomass, ll[nomass]
 
 
 def intervals_for_layer(
@@ -250,21 +262,17 @@ def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]
         Link conductances at the reference temperature [W/(m2K)] (lambda(T) layers
         are re-evaluated in the kernel).
     """
-    ll, n, co = grid.link_layer, grid.link_intervals, grid.link_contact_of
+    massive, lm, n, contact, contact_of, nomass, nomass_layer = grid.link_kinds
     nc = props.n_candidates
     g = np.empty((nc, grid.n_links))
     cap = np.zeros((nc, grid.n_nodes))
-    li = np.where(ll >= 0, ll, 0)
-    contact = ll < 0
-    nomass = (ll >= 0) & (n == 0.0)
-    massive = np.nonzero((ll >= 0) & (n > 0.0))[0]
-    with np.errstate(divide="ignore"):
-        g[:, contact] = 1.0 / np.maximum(
-            np.asarray(props.contact_resistance, float)[:, co[contact]], MIN_CONTACT_RESISTANCE
-        )
-        g[:, nomass] = 1.0 / np.asarray(props.thermal_resistance, float)[:, li[nomass]]
-    lm = li[massive]
-    dx = np.asarray(props.thickness, float)[:, lm] / n[massive]
+    if len(contact) or len(nomass):
+        with np.errstate(divide="ignore"):
+            g[:, contact] = 1.0 / np.maximum(
+                np.asarray(props.contact_resistance, float)[:, contact_of], MIN_CONTACT_RESISTANCE
+            )
+            g[:, nomass] = 1.0 / np.asarray(props.thermal_resistance, float)[:, nomass_layer]
+    dx = np.asarray(props.thickness, float)[:, lm] / n
     g[:, massive] = np.asarray(props.conductivity, float)[:, lm] / dx
     half = 0.5 * np.asarray(props.volumetric_heat_capacity, float)[:, lm] * dx
     cap[:, massive] += half  # each end node gets half the interval's capacity (indices unique per line)

@@ -210,21 +210,29 @@ class PreparedFD:
         self.tab_T = np.array(tabs_T if tabs_T else [0.0])
         self.tab_v = np.array(tabs_v if tabs_v else [1.0])
         self.nonlinear = bool((kind != LAMBDA_CONSTANT).any())
+        self.exponential_links = np.flatnonzero(kind == LAMBDA_EXPONENTIAL)
+        self.exponential_link_layers = grid.link_layer[self.exponential_links]
 
     def _link_coefficients(self, props: PropertyArrays) -> np.ndarray:
         """Per-candidate temperature coefficients f of exponential links."""
         nc = props.n_candidates
         coef = np.zeros((nc, self.grid.n_links))
-        mask = self.kind == LAMBDA_EXPONENTIAL
-        if mask.any():
-            coef[:, mask] = props.temperature_coefficient[:, self.grid.link_layer[mask]]
+        if len(self.exponential_links):
+            coef[:, self.exponential_links] = props.temperature_coefficient[:, self.exponential_link_layers]
         return coef
+
+    def _face_h(self, nc: int) -> np.ndarray:
+        """The faces' surface coefficients [W/(m2K)] for each of nc candidates, shape (nc, 2) (one array
+        per batch size)."""
+        cache = self.__dict__.setdefault("_face_h_rows", {})
+        if nc not in cache:
+            cache[nc] = np.repeat(self.bc_h[None, :], nc, axis=0)
+        return cache[nc]
 
     def _thetas(self, cap: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """theta per link and per boundary term, and the number of links made implicit."""
         limit = self.stiff_limit if self.stiff_limit is not None else 1.0 / max(1.0 - self.theta, 1e-300)
-        bc_h = np.broadcast_to(self.bc_h, (cap.shape[0], 2)).copy()
-        return operator.link_thetas(cap, g, self.bc_type, bc_h, self.theta, self.dt, limit)
+        return operator.link_thetas(cap, g, self.bc_type, self._face_h(cap.shape[0]), self.theta, self.dt, limit)
 
     # ------------------------------------------------------------------ running
     def _probe_weights(self, probe_depths: np.ndarray | None, nc: int) -> tuple[np.ndarray, ...]:
@@ -319,7 +327,7 @@ class PreparedFD:
         nc = props.n_candidates
         coef = self._link_coefficients(props)
         tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        bc_h = np.broadcast_to(self.bc_h, (nc, 2)).copy()
+        bc_h = self._face_h(nc)
         wall = (cap, g, theta)
         laws = (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v)
         faces = (self.bc_type, bc_h, bc_theta, self.ue, self.ui)
