@@ -448,13 +448,8 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
         Gm[lnk] = g_ref[lnk]
     has_table = False
     fh = np.empty(n_links)  # f / 2 (exponential law; 0 for the other links)
-    nl_lo = uint64(n_links)  # the range [nl_lo, nl_hi) of links from the first to the last lambda(T) link
-    nl_hi = uint64(0)
     for lnk in range(n_links):
         fh[lnk] = 0.5 * coef[lnk]
-        if kind[lnk] != LAMBDA_CONSTANT:
-            nl_lo = min(nl_lo, uint64(lnk))
-            nl_hi = uint64(lnk + 1)
     th0 = theta[0] if n_links > 0 else 0.5
     om0 = 1.0 - th0
     uniform_theta = True  # one theta for every link (the fused lambda(T) pass)
@@ -524,33 +519,26 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
             # E_l = g*_l (theta_l dT~_l + (1 - theta_l) dT^n_l) - theta_l g0_l dT~_l (Tnew: predictor)
             fresh = n == 0  # E still to be formed from the array gs (first step: g* = g0 from the start)
             if n > 0:
-                # lambda(T): one pass over the links from the first to the last lambda(T) link
-                # (vectorised: no branches, integer counts, unsigned indices) brings the link factors
-                # Gm to this step's mid-step temperature, Gm *= exp(f dT_m) (a polynomial; dT_m: the
-                # change of the link's mean mid-step temperature, from the previous step's last pass),
-                # forms the Kirchhoff-mean conductances g* = Gm sinh(x)/x (as _nonlinear_conductances),
-                # counts the factor updates and the links beyond the polynomials' ranges (n_big) and
-                # those whose g* left the drift band [glo, ghi] around g0, and, when every link has the
-                # same theta (reading few arrays keeps the pass vectorised), the explicit fluxes E too,
-                # without storing g*; links with constant conductivity outside that range take the
-                # linear E. The rare branches (exact factors, table laws, refactorisation) store g*
-                # and form E afterwards.
+                # lambda(T): one pass over the links (vectorised: no branches, integer counts) brings
+                # the link factors Gm to this step's mid-step temperature, Gm *= exp(f dT_m) (a
+                # polynomial; dT_m: the change of the link's mean mid-step temperature, from the
+                # previous step's last pass), forms the Kirchhoff-mean conductances g* = Gm sinh(x)/x
+                # (as _nonlinear_conductances), counts the factor updates and the links beyond the
+                # polynomials' ranges (n_big) and those whose g* left the drift band [glo, ghi] around
+                # g0, and, when every link has the same theta (reading few arrays keeps the pass
+                # vectorised), the explicit fluxes E too, without storing g*; the rare branches (exact
+                # factors, table laws, refactorisation) store g* and form E afterwards.
                 n_drift = 0
                 if uniform_theta:
-                    for lnk in range(nl_lo, nl_hi):
-                        l1 = lnk + uint64(1)
-                        gmk, gk, big = _step_conductance(fh[lnk], DB[lnk], DB[l1], Gm[lnk], Tmid[lnk], Tmid[l1])
+                    for lnk in range(n_links):
+                        gmk, gk, big = _step_conductance(
+                            fh[lnk], DB[lnk], DB[lnk + 1], Gm[lnk], Tmid[lnk], Tmid[lnk + 1]
+                        )
                         Gm[lnk] = gmk
                         n_big += big
                         n_drift += 1 if (gk > ghi[lnk]) | (gk < glo[lnk]) else 0
-                        dp = Tnew[lnk] - Tnew[l1]
-                        Epad[l1] = gk * (th0 * dp + om0 * (Tn[lnk] - Tn[l1])) - thg[lnk] * dp
-                    for lnk in range(nl_lo):
-                        l1 = lnk + uint64(1)
-                        Epad[l1] = gex[lnk] * (Tn[lnk] - Tn[l1])
-                    for lnk in range(nl_hi, uint64(n_links)):
-                        l1 = lnk + uint64(1)
-                        Epad[l1] = gex[lnk] * (Tn[lnk] - Tn[l1])
+                        dp = Tnew[lnk] - Tnew[lnk + 1]
+                        Epad[lnk + 1] = gk * (th0 * dp + om0 * (Tn[lnk] - Tn[lnk + 1])) - thg[lnk] * dp
                 else:
                     fresh = True
                     for lnk in range(n_links):
