@@ -495,7 +495,8 @@ class Diagnosis:
     def to_json(self) -> dict:
         return {
             "adopted": list(self.adopted),
-            "criterion": "BIC on the AR(1) likelihood of the residuals",
+            "criterion": "BIC on the AR(1) likelihood of the residuals, each target's sensor bias integrated out "
+            "(prior sd half its accuracy)",
             "adopt_delta": ADOPT_DELTA,
             "bic_base": self.bic_base,
             "residual_pairs": self.n_pairs,

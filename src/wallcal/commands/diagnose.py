@@ -11,9 +11,10 @@ def register(sub) -> None:
         help="let the data choose the model structure (probe depth, contact resistance, lambda(T), sensor offset)",
         description="Look at the residuals of the calibrated model (bias, lag, daily pattern of each target), "
         "propose extensions of the [calibration] space (a probe's depth, a contact resistance at each "
-        "interface next to a probe, lambda(T) of each insulation layer or group, a sensor offset), score each "
-        "and each useful combination by a warm-started recalibration with BIC on the AR(1) likelihood of the "
-        "residuals, and adopt the set the data support. Writes OUT/candidates.csv, OUT/study.toml (the study "
+        "interface next to a probe, lambda(T) of each insulation layer or group or all sharing one coefficient, a "
+        "sensor offset), score each and each useful combination by a warm-started recalibration with BIC on the "
+        "AR(1) likelihood of the residuals (each sensor's bias within its accuracy integrated out), and adopt "
+        "the set the data support. Writes OUT/candidates.csv, OUT/study.toml (the study "
         "with the adopted extensions), OUT/residuals.csv and OUT/diagnose.json.",
     )
     d.add_argument("study")
