@@ -379,7 +379,6 @@ def test_a_sensor_bias_does_not_hide_the_contact(tmp_path):
     assert (c.loc[[n for n in c.index if n.startswith("offset")], "delta_bic"] > -ADOPT_DELTA).all()
 
 
-@pytest.mark.slow
 def test_shared_lambda_t_adopted(tmp_path):
     """The same lambda(T) coefficient in every mineral-wool layer: the shared coefficient (one parameter) is
     adopted, not the separate groups, and the value recovered."""
@@ -393,3 +392,43 @@ def test_shared_lambda_t_adopted(tmp_path):
     d = diagnose(st, kinds=("conductivity_temperature_coefficient",))
     assert d.adopted == ["conductivity_temperature_coefficient[3,5,7,8]"]
     assert d.x["conductivity_temperature_coefficient[3,5,7,8]"] == pytest.approx(0.008, rel=0.15)
+
+
+def test_forward_selection_polishes_close_contenders_and_adopts_ties():
+    """Selection on scripted criterion values: a contender within POLISH_MARGIN is polished before the comparison
+    (here it overtakes the leader); candidates ending within TIE_DELTA of the best are adopted together; a
+    distant second is not."""
+    from types import SimpleNamespace as F
+
+    from wallcal.analysis.diagnose import POLISH_MARGIN, TIE_DELTA, forward_select
+
+    def run(values, polished, combos):
+        calls = {"polish": [], "score": []}
+
+        def score(names, warm):
+            calls["score"].append(tuple(sorted(names)))
+            return F(names=tuple(names), bic=combos[tuple(sorted(names))])
+
+        def polish(f):
+            calls["polish"].append(f.names)
+            return F(names=f.names, bic=polished.get(f.names, f.bic))
+
+        singles = {n: F(names=(n,), bic=v) for n, v in values.items()}
+        fit, adopted, tied = forward_select(F(names=(), bic=0.0), singles, score, polish, lambda names: True)
+        return fit, adopted, tied, calls
+
+    # A leads B by less than the margin, but B polished ends as good as A: both adopted; C (far) never polished
+    far = -(POLISH_MARGIN + 30.0)
+    combos = {("A", "B"): -91.0, ("A", "C"): -95.0, ("B", "C"): -95.0, ("A", "B", "C"): -85.0}
+    fit, adopted, tied, calls = run(
+        {"A": -100.0, "B": -100.0 + POLISH_MARGIN - 1, "C": far}, {("B",): -100.0 + TIE_DELTA / 2}, combos
+    )
+    assert set(adopted) == {"A", "B"} and fit.bic == -91.0
+    assert ("C",) not in calls["polish"] and ("B",) in calls["polish"]
+    assert tied and set(tied[0][0]) == {"A", "B"} and tied[0][1] == pytest.approx(9.0)
+    # B polished but still 3 behind: not tied; the next step tries A + B and A + C and adopts neither (no gain of
+    # ADOPT_DELTA over A)
+    combos = {("A", "B"): -95.0, ("A", "C"): -100.0}
+    fit, adopted, tied, calls = run({"A": -100.0, "B": -90.0, "C": far}, {("B",): -97.0}, combos)
+    assert adopted == ("A",) and not tied and fit.bic == -100.0
+    assert ("A", "B") in calls["score"] and ("A", "C") in calls["score"]

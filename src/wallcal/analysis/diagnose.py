@@ -733,6 +733,77 @@ def debiased_residuals(ev, X, bias_sd, noise) -> np.ndarray:
     return np.concatenate([r.reshape(e.shape[0], -1), prior], axis=1)
 
 
+def forward_select(base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED):
+    """Forward selection of extensions by the criterion (the ``bic`` of each fit; lower is better).
+
+    The best single candidate is adopted when it lowers the criterion by at least :data:`ADOPT_DELTA`; then the
+    :data:`MAX_TRIALS` best remaining useful candidates (those better than ``base`` alone) are each added to the
+    adopted set, and so on, at most ``max_adopted`` extensions. At each step the candidates within
+    :data:`POLISH_MARGIN` of the step's best are polished (fitted to convergence) before they are compared, and
+    those that end within :data:`TIE_DELTA` of the best are tied: adopted together with it when the set still
+    lowers the criterion by :data:`ADOPT_DELTA` (the data cannot choose between them).
+
+    Parameters
+    ----------
+    base : fit
+        The study's structure: attributes ``names`` (an empty tuple) and ``bic``.
+    singles : dict
+        Extension name -> its fit alone (attributes ``names``, ``bic``).
+    score : callable
+        ``score(names, warm) -> fit`` of a set of extensions, warm-started at the fit ``warm``.
+    polish : callable
+        ``polish(fit) -> fit`` continued to convergence.
+    compatible : callable
+        ``compatible(names) -> bool``: whether the extensions can be adopted together.
+    max_adopted : int
+
+    Returns
+    -------
+    (fit, adopted, tied)
+        The adopted set's fit, its names, and the tied groups as (names, criterion change against the best
+        one alone).
+    """
+    useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
+    current = base
+    adopted: tuple = ()
+    tied: list = []
+    while len(adopted) < max_adopted:
+        if not adopted:
+            trials = [singles[n] for n in useful]
+        else:
+            pool = [n for n in useful if n not in adopted and compatible(adopted + (n,))][:MAX_TRIALS]
+            trials = [score(adopted + (n,), current) for n in pool]
+        if not trials:
+            break
+        # the close contenders are fitted to convergence before they are compared: a probe depth or a contact
+        # link moves slowly in a few Jacobians, and the ranking of near-equals must not depend on that
+        first = min(f.bic for f in trials)
+        trials = [polish(f) if f.bic <= first + POLISH_MARGIN else f for f in trials]
+        best = min(trials, key=lambda f: f.bic)
+        if best.bic > current.bic - ADOPT_DELTA:
+            break
+        # extensions that explain the misfit as well as the best one (within TIE_DELTA): the data cannot choose
+        # between them, so all are adopted and the posterior averages over them, rather than being conditional on
+        # an arbitrary choice
+        new = [n for n in best.names if n not in adopted]
+        ties = [
+            n
+            for f in sorted(trials, key=lambda f: f.bic)
+            if f is not best and f.bic <= best.bic + TIE_DELTA
+            for n in f.names
+            if n not in adopted and n not in new
+        ]
+        ties = [n for n in dict.fromkeys(ties) if compatible(tuple(best.names) + (n,))]
+        if ties and len(best.names) + len(ties) <= max_adopted:
+            both = score(tuple(best.names) + tuple(ties), best)
+            if both.bic <= current.bic - ADOPT_DELTA:
+                tied.append((new + ties, both.bic - best.bic))
+                best = both
+        current = best
+        adopted = tuple(best.names)
+    return current, adopted, tied
+
+
 class _Say:
     def __init__(self, progress):
         from ..calibration.algorithms import Progress
@@ -926,44 +997,7 @@ def diagnose(
         return fits[key]
 
     singles = {e.name: score((e.name,), base) for e in exts}
-    useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
-    current = base
-    adopted: tuple = ()
-    tied: list = []
-    while len(adopted) < max_adopted:
-        if not adopted:
-            trials = [singles[n] for n in useful]
-        else:
-            pool = [n for n in useful if n not in adopted and compatible(adopted + (n,))][:MAX_TRIALS]
-            trials = [score(adopted + (n,), current) for n in pool]
-        if not trials:
-            break
-        # the close contenders are fitted to convergence before they are compared: a probe depth or a contact
-        # link moves slowly in a few Jacobians, and the ranking of near-equals must not depend on that
-        first = min(f.bic for f in trials)
-        trials = [polish(f) if f.bic <= first + POLISH_MARGIN else f for f in trials]
-        best = min(trials, key=lambda f: f.bic)
-        if best.bic > current.bic - ADOPT_DELTA:
-            break
-        # extensions that explain the misfit as well as the best one (within TIE_DELTA): the data cannot choose
-        # between them, so all are adopted and the posterior averages over them, rather than being conditional on
-        # an arbitrary choice
-        new = [n for n in best.names if n not in adopted]
-        ties = [
-            n
-            for f in sorted(trials, key=lambda f: f.bic)
-            if f is not best and f.bic <= best.bic + TIE_DELTA
-            for n in f.names
-            if n not in adopted and n not in new
-        ]
-        ties = [n for n in dict.fromkeys(ties) if compatible(best.names + tuple(new) + (n,))]
-        if ties and len(best.names) + len(ties) <= max_adopted:
-            both = score(best.names + tuple(ties), best)
-            if both.bic <= current.bic - ADOPT_DELTA:
-                tied.append((new + ties, both.bic - best.bic))
-                best = both
-        current = best
-        adopted = best.names
+    current, adopted, tied = forward_select(base, singles, score, polish, compatible, max_adopted)
     rows = []
     for key, f in fits.items():
         rows.append(
