@@ -89,7 +89,7 @@ def tridiag_ql(d, e, zt, rot_i, rot_cs):
     zt : (m, r) selected rows of the identity, transposed (zt[i, j] = 1 if row j is node i);
         on return zt[k, j] is the component at that node of eigenvector k.
     rot_i, rot_cs : storage for the plane rotations (index, (c, s)); the eigenvector matrix is
-        ``W = R_1 R_2 ... R_n`` (see :func:`apply_w`, :func:`apply_wt`). Grown when full.
+        ``W = R_1 R_2 ... R_n`` (see :func:`apply_w`). Grown when full.
 
     Returns (n_rotations, rot_i, rot_cs), n_rotations = -1 if an eigenvalue failed to converge.
     This is EISPACK's tql2 (Numerical Recipes' tqli) with the rotations recorded instead of
@@ -182,19 +182,6 @@ def apply_w(nrot, rot_i, rot_cs, x):
 
 
 @njit(cache=True)
-def apply_wt(nrot, rot_i, rot_cs, x):
-    """x <- W^T x (node coordinates to eigenvector coordinates)."""
-    for k in range(nrot):
-        i = rot_i[k]
-        c = rot_cs[k, 0]
-        s = rot_cs[k, 1]
-        a = x[i]
-        b = x[i + 1]
-        x[i] = c * a - s * b
-        x[i + 1] = s * a + c * b
-
-
-@njit(cache=True)
 def _householder(a, beta):
     """Reduce the symmetric ``a`` (m, m) to tridiagonal form in place, ``a = Q T Q^T``: on return
     ``a[k, k]`` and ``a[k + 1, k]`` hold T's diagonal and off-diagonal, row ``k`` beyond column k
@@ -225,7 +212,7 @@ def _householder(a, beta):
         for i in range(k + 1, m):
             acc = 0.0
             for j in range(k + 1, m):
-                acc += a[max(i, j), min(i, j)] * a[k, j]  # B from the lower triangle
+                acc += (a[i, j] if i >= j else a[j, i]) * a[k, j]  # B from the lower triangle
             p[i] = b * acc
             vp += a[k, i] * p[i]
         hk = 0.5 * b * vp
@@ -238,43 +225,30 @@ def _householder(a, beta):
 
 
 @njit(cache=True)
-def _apply_q(a, beta, x, transposed):
-    """x <- Q x, or Q^T x (node-like coordinates to those of the tridiagonal T) when ``transposed``; Q from
-    :func:`_householder` (each reflection H_k = I - beta_k v_k v_k^T is symmetric: Q^T applies them in
-    the opposite order)."""
+def _apply_q(a, beta, y, transposed):
+    """Y <- Q Y, or Q^T Y (node-like coordinates to those of the tridiagonal T) when ``transposed``,
+    column by column; Q from :func:`_householder` (each reflection H_k = I - beta_k v_k v_k^T is
+    symmetric: Q^T applies them in the opposite order). (Call it with a runtime bool, e.g.
+    ``np.bool_(True)``: a literal would compile one copy per value.)"""
     m = a.shape[0]
     for step in range(m - 2):
         k = step if transposed else m - 3 - step
-        if beta[k] == 0.0:
+        b = beta[k]
+        if b == 0.0:
             continue
-        s = 0.0
-        for i in range(k + 1, m):
-            s += a[k, i] * x[i]
-        s *= beta[k]
-        for i in range(k + 1, m):
-            x[i] -= s * a[k, i]
-
-
-@njit(cache=True)
-def _lower_solve(ld, lo, x):
-    """x <- L^-1 x for the lower bidiagonal L (diagonal ld, subdiagonal lo)."""
-    x[0] /= ld[0]
-    for i in range(1, x.shape[0]):
-        x[i] = (x[i] - lo[i - 1] * x[i - 1]) / ld[i]
-
-
-@njit(cache=True)
-def _lower_t_solve(ld, lo, x):
-    """x <- L^-T x."""
-    m = x.shape[0]
-    x[m - 1] /= ld[m - 1]
-    for i in range(m - 2, -1, -1):
-        x[i] = (x[i] - lo[i] * x[i + 1]) / ld[i]
+        for c in range(y.shape[1]):
+            s = 0.0
+            for i in range(k + 1, m):
+                s += a[k, i] * y[i, c]
+            s *= b
+            for i in range(k + 1, m):
+                y[i, c] -= s * a[k, i]
 
 
 @njit(cache=True)
 def _lower_solve_rows(ld, lo, y):
-    """Y <- L^-1 Y, row by row (every column at once)."""
+    """Y <- L^-1 Y, row by row (every column at once), for the lower bidiagonal L (diagonal ld,
+    subdiagonal lo)."""
     m, n = y.shape
     for j in range(n):
         y[0, j] /= ld[0]
@@ -457,9 +431,16 @@ def _rows(cap, g, pa, pb, pw, dl, dw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     n_nodes = cap.shape[0]
     n_links = g.shape[0]
     npr = pa.shape[0]
-    pe, pi = operator.assemble_operator(g, np.ones(n_links), bc_type, bc_h, np.ones(2), j0, m, kd, ko)
-    G_nodes[:, :] = 0.0
-    D[:, :] = 0.0
+    w_links = np.empty(n_links)  # (np.empty in few shapes only: each numpy call compiles numpy's code)
+    w_faces = np.empty(2)
+    w_links[:] = 1.0
+    w_faces[:] = 1.0
+    pe, pi = operator.assemble_operator(g, w_links, bc_type, bc_h, w_faces, j0, m, kd, ko)
+    for q in range(G_nodes.shape[0]):
+        for i in range(m):
+            G_nodes[q, i] = 0.0
+        for c in range(N_FEAT):
+            D[q, c] = 0.0
     # probes: node a with 1 - w, node b with w; a known face node enters through its input
     for q in range(npr):
         for node, wgt in ((pa[q], 1.0 - pw[q]), (pb[q], pw[q])):
@@ -719,7 +700,8 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 for i in range(m):
                     G_nodes[q, i] = 0.0
         rq = np.empty(n_rq, dtype=np.int64)
-        fq = np.full(N_FUSED, n_q, dtype=np.int64)  # fused rows, padded with the zero row n_q
+        fq = np.empty(N_FUSED, dtype=np.int64)  # fused rows, padded with the zero row n_q
+        fq[:] = n_q
         n_rq = np.int64(0)
         for q in range(n_q):
             if want[q]:
@@ -738,25 +720,29 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
         for i in range(m):
             if not cap[j0 + i] > 0.0:
                 uniform = False
+        has_t0 = t0.shape[0] == n_nodes
+        # (work arrays by np.empty in a few shapes only: each other numpy call compiles numpy's code)
         mu = np.empty(m)
         r0 = np.empty(m)
         r1 = np.empty(m)
         z = np.empty(m)  # modal state
-        G = np.zeros((n_q, m))  # output rows in modal coordinates
+        G = np.empty((n_q, m))  # output rows in modal coordinates
         rot_i = np.empty(2 * m * m, dtype=np.int64)
         rot_cs = np.empty((2 * m * m, 2))
-        dinv = np.ones(m)  # uniform: Cap^-1/2
-        ld = np.ones(m)  # otherwise: M = L L^T and the Householder vectors of A (see below)
-        lo = np.zeros(m)
-        a = np.zeros((0, 0))
-        beta = np.zeros(m)
-        # a symmetric tridiagonal eigenproblem (d, ee) whose QL rotations map the columns of zt
+        dinv = np.empty(m)  # uniform: Cap^-1/2 (1 otherwise)
+        ld = np.empty(m)  # otherwise: M = L L^T and the Householder vectors of A (see below)
+        lo = np.empty(m)
+        a = np.empty((0, 0))
+        beta = np.empty(m)
+        # a symmetric tridiagonal eigenproblem (d, ee) whose QL rotations map the columns of zt; with
+        # an initial state, its last column carries the state into modal coordinates
         d = np.empty(m)
-        ee = np.zeros(m)
-        col = np.full(m, -1, dtype=np.int64)
+        ee = np.empty(m)
+        col = np.empty(m, dtype=np.int64)
         if uniform:
             # S = Cap^-1/2 K Cap^-1/2 (tridiagonal); zt: the rows of the identity at the unknowns whose
-            # eigenvector components are needed (both ends and the probes' nodes)
+            # eigenvector components are needed (both ends and the probes' nodes), then Cap^1/2 T
+            # (z = V^T Cap T = W^T Cap^1/2 T)
             for i in range(m):
                 dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
             for i in range(m):
@@ -770,13 +756,19 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 for q in range(n_q):
                     if G_nodes[q, i] != 0.0:
                         need = True
+                col[i] = -1
                 if need:
                     col[i] = r
                     r += 1
-            zt = np.zeros((m, r))
+            ncol = r + 1 if has_t0 else r
+            zt = np.empty((m, ncol))
             for i in range(m):
+                for c in range(ncol):
+                    zt[i, c] = 0.0
                 if col[i] >= 0:
                     zt[i, col[i]] = 1.0
+                if has_t0:
+                    zt[i, r] = t0[j0 + i] / dinv[i]
         else:
             # per-term theta or nodes without capacity: the step M T^{n+1} = N T^n + p s^n with
             # M = Cap/dt + K_theta, N = Cap/dt - K_{1-theta} (both symmetric tridiagonal, M positive
@@ -794,18 +786,26 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 ci_dt = cap[j0 + i] / dt
                 md[i] += ci_dt
                 nd[i] = ci_dt - nd[i]
+                dinv[i] = 1.0
             ld[0] = np.sqrt(md[0])
             for i in range(1, m):
                 lo[i - 1] = mo[i - 1] / ld[i - 1]
                 ld[i] = np.sqrt(md[i] - lo[i - 1] * lo[i - 1])
-            a = np.zeros((m, m))  # Y = L^-1 N, then A = L^-1 Y^T (= A^T)
+            lo[m - 1] = 0.0
+            y_n = np.empty((m, m))  # N, then Y = L^-1 N; A = L^-1 Y^T (= A^T)
             for i in range(m):
-                a[i, i] = nd[i]
+                for j in range(m):
+                    y_n[i, j] = 0.0
+            for i in range(m):
+                y_n[i, i] = nd[i]
                 if i + 1 < m:
-                    a[i, i + 1] = -no[i]
-                    a[i + 1, i] = -no[i]
-            _lower_solve_rows(ld, lo, a)
-            a = np.ascontiguousarray(a.T)
+                    y_n[i, i + 1] = -no[i]
+                    y_n[i + 1, i] = -no[i]
+            _lower_solve_rows(ld, lo, y_n)
+            a = np.empty((m, m))
+            for i in range(m):
+                for j in range(m):
+                    a[i, j] = y_n[j, i]
             _lower_solve_rows(ld, lo, a)
             _householder(a, beta)
             for i in range(m):
@@ -813,21 +813,22 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 if i + 1 < m:
                     ee[i] = a[i + 1, i]
             # zt: the columns V^T p_e, V^T p_i and V^T G_nodes[q] before the QL's rotations
-            # (V^T x = W^T Q^T L^-1 x)
-            zt = np.zeros((m, 2 + n_q))
+            # (V^T x = W^T Q^T L^-1 x), then L^T T (z = V^T M T = W^T Q^T L^T T)
+            ncol = 3 + n_q if has_t0 else 2 + n_q
+            zt = np.empty((m, ncol))
+            for i in range(m):
+                for c in range(ncol):
+                    zt[i, c] = 0.0
             zt[0, 0] = pe
             zt[m - 1, 1] = pi
             for q in range(n_q):
                 for i in range(m):
                     zt[i, 2 + q] = G_nodes[q, i]
-            x = np.empty(m)
-            for c in range(2 + n_q):
+            _lower_solve_rows(ld, lo, zt)
+            if has_t0:
                 for i in range(m):
-                    x[i] = zt[i, c]
-                _lower_solve(ld, lo, x)
-                _apply_q(a, beta, x, True)
-                for i in range(m):
-                    zt[i, c] = x[i]
+                    zt[i, ncol - 1] = ld[i] * t0[j0 + i] + (lo[i] * t0[j0 + i + 1] if i + 1 < m else 0.0)
+            _apply_q(a, beta, zt, np.bool_(True))
         nrot, rot_i, rot_cs = tridiag_ql(d, ee, zt, rot_i, rot_cs)
         if nrot < 0:
             out[:, :] = np.nan
@@ -847,6 +848,8 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
                 z[k] = (a0 * ue[0] + a1 * ui[0]) / d[k]
             for q in range(n_q):  # G = G_nodes V
+                for k in range(m):
+                    G[q, k] = 0.0
                 for i in range(m):
                     h = G_nodes[q, i]
                     if h != 0.0:
@@ -864,21 +867,18 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 z[k] = (r0[k] * ue[0] + r1[k] * ui[0]) / (1.0 - mu[k])
                 for q in range(n_q):
                     G[q, k] = zt[k, 2 + q]
-        if t0.shape[0] == n_nodes:  # z = V^T Cap T = W^T (Cap^1/2 T), or V^T M T = W^T Q^T L^T T
-            for i in range(m):
-                if uniform:
-                    z[i] = t0[j0 + i] / dinv[i]
-                else:
-                    z[i] = ld[i] * t0[j0 + i] + (lo[i] * t0[j0 + i + 1] if i + 1 < m else 0.0)
-            if not uniform:
-                _apply_q(a, beta, z, True)
-            apply_wt(nrot, rot_i, rot_cs, z)
+        if has_t0:
+            for k in range(m):
+                z[k] = zt[k, ncol - 1]
         # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
         # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
         # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
         rmax = 0.0
         for k in range(m):
-            rmax = max(rmax, abs(r0[k]), abs(r1[k]))
+            if abs(r0[k]) > rmax:
+                rmax = abs(r0[k])
+            if abs(r1[k]) > rmax:
+                rmax = abs(r1[k])
         tiny = 1e-150 * rmax if rmax > 0.0 else 1e-150
         rho = np.empty(m)
         al = np.empty(m)
@@ -890,11 +890,14 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
             rho[k] = rk
             al[k] = r0[k] / rk
             y[k] = z[k] / rk
-        # per output pattern: Gs = G P(mu) rho over the scaled state and H (row n_q stays zero: the
-        # padding of the fused rows)
+        # per output pattern: Gs = G P(mu) rho over the scaled state and H (the requested rows; row n_q
+        # is zero: the padding of the fused rows)
         n_pat = wp.shape[0]
-        Gs = np.zeros((n_pat, n_q + 1, m))
-        H = np.zeros((n_pat, n_q + 1, 6))
+        Gs = np.empty((n_pat, n_q + 1, m))
+        H = np.empty((n_pat, n_q + 1, 6))
+        for p in range(n_pat):
+            for k in range(m):
+                Gs[p, n_q, k] = 0.0
         _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H)
         # the fused rows of the main pattern, extracted once (a view per output would cost reference
         # counting in the loop; other patterns go through _form)
@@ -911,12 +914,17 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
         # final temperatures T = V z (uniform: Cap^-1/2 W z; else L^-T Q W z)
         apply_w(nrot, rot_i, rot_cs, z)
         if not uniform:
-            _apply_q(a, beta, z, False)
-            _lower_t_solve(ld, lo, z)
+            zq = np.empty((m, 1))
+            for i in range(m):
+                zq[i, 0] = z[i]
+            _apply_q(a, beta, zq, np.bool_(False))
+            z[m - 1] = zq[m - 1, 0] / ld[m - 1]
+            for i in range(m - 2, -1, -1):
+                z[i] = (zq[i, 0] - lo[i] * z[i + 1]) / ld[i]
         for i in range(n_nodes):
             tend[i] = 0.0
         for i in range(m):
-            tend[j0 + i] = dinv[i] * z[i] if uniform else z[i]
+            tend[j0 + i] = dinv[i] * z[i]
         if j0 == 1:
             tend[0] = ue[n_steps]
         if boundary.is_known(bc_type[1]):
