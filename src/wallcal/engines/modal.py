@@ -734,41 +734,34 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
         lo = np.empty(m)
         a = np.empty((0, 0))
         beta = np.empty(m)
-        # a symmetric tridiagonal eigenproblem (d, ee) whose QL rotations map the columns of zt; with
-        # an initial state, its last column carries the state into modal coordinates
+        # a symmetric tridiagonal eigenproblem (d, ee) and the columns zt that its QL rotations map to
+        # modal coordinates: V^T x = W^T B^-1 x for the couplings p_e, p_i and the output rows, then
+        # (with an initial state) V^T M T = W^T B^T T; uniform: B = Cap^1/2, otherwise B = L Q
         d = np.empty(m)
         ee = np.empty(m)
-        col = np.empty(m, dtype=np.int64)
+        ncol = 3 + n_q if has_t0 else 2 + n_q
+        zt = np.empty((m, ncol))
+        for i in range(m):
+            for c in range(ncol):
+                zt[i, c] = 0.0
+        zt[0, 0] = pe
+        zt[m - 1, 1] = pi
+        for q in range(n_q):
+            for i in range(m):
+                zt[i, 2 + q] = G_nodes[q, i]
         if uniform:
-            # S = Cap^-1/2 K Cap^-1/2 (tridiagonal); zt: the rows of the identity at the unknowns whose
-            # eigenvector components are needed (both ends and the probes' nodes), then Cap^1/2 T
-            # (z = V^T Cap T = W^T Cap^1/2 T)
+            # K v = lambda Cap v: S = Cap^-1/2 K Cap^-1/2 (tridiagonal), V = Cap^-1/2 W
             for i in range(m):
                 dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
             for i in range(m):
                 d[i] = kd[i] * dinv[i] * dinv[i]
             for i in range(m - 1):
                 ee[i] = ko[i] * dinv[i] * dinv[i + 1]
-            col[0] = 0
-            r = 1
-            for i in range(1, m):
-                need = i == m - 1
-                for q in range(n_q):
-                    if G_nodes[q, i] != 0.0:
-                        need = True
-                col[i] = -1
-                if need:
-                    col[i] = r
-                    r += 1
-            ncol = r + 1 if has_t0 else r
-            zt = np.empty((m, ncol))
             for i in range(m):
-                for c in range(ncol):
-                    zt[i, c] = 0.0
-                if col[i] >= 0:
-                    zt[i, col[i]] = 1.0
+                for c in range(2 + n_q):
+                    zt[i, c] *= dinv[i]
                 if has_t0:
-                    zt[i, r] = t0[j0 + i] / dinv[i]
+                    zt[i, ncol - 1] = t0[j0 + i] / dinv[i]
         else:
             # per-term theta or nodes without capacity: the step M T^{n+1} = N T^n + p s^n with
             # M = Cap/dt + K_theta, N = Cap/dt - K_{1-theta} (both symmetric tridiagonal, M positive
@@ -812,19 +805,7 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 d[i] = a[i, i]
                 if i + 1 < m:
                     ee[i] = a[i + 1, i]
-            # zt: the columns V^T p_e, V^T p_i and V^T G_nodes[q] before the QL's rotations
-            # (V^T x = W^T Q^T L^-1 x), then L^T T (z = V^T M T = W^T Q^T L^T T)
-            ncol = 3 + n_q if has_t0 else 2 + n_q
-            zt = np.empty((m, ncol))
-            for i in range(m):
-                for c in range(ncol):
-                    zt[i, c] = 0.0
-            zt[0, 0] = pe
-            zt[m - 1, 1] = pi
-            for q in range(n_q):
-                for i in range(m):
-                    zt[i, 2 + q] = G_nodes[q, i]
-            _lower_solve_rows(ld, lo, zt)
+            _lower_solve_rows(ld, lo, zt)  # (the state column is still zero)
             if has_t0:
                 for i in range(m):
                     zt[i, ncol - 1] = ld[i] * t0[j0 + i] + (lo[i] * t0[j0 + i + 1] if i + 1 < m else 0.0)
@@ -834,42 +815,22 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
             out[:, :] = np.nan
             tend[:] = np.nan
             continue
-        if uniform:
-            # d: the eigenvalues lambda of S; V = Cap^-1/2 W, so V[i, k] = dinv[i] zt[k, col[i]]
-            ce = col[0]
-            ci = col[m - 1]
-            for k in range(m):
+        for k in range(m):
+            if uniform:  # d: the eigenvalues lambda of S, mu = (1/dt - (1 - theta) lambda) / (1/dt + theta lambda)
                 den = 1.0 / dt + theta * d[k]
                 mu[k] = (1.0 / dt - (1.0 - theta) * d[k]) / den
-                a0 = dinv[0] * zt[k, ce] * pe
-                a1 = dinv[m - 1] * zt[k, ci] * pi
-                r0[k] = a0 / den
-                r1[k] = a1 / den
-                # steady start: K T = p u^0 gives z = Lambda^-1 V^T p u^0 (V^T K V = Lambda)
-                z[k] = (a0 * ue[0] + a1 * ui[0]) / d[k]
-            for q in range(n_q):  # G = G_nodes V
-                for k in range(m):
-                    G[q, k] = 0.0
-                for i in range(m):
-                    h = G_nodes[q, i]
-                    if h != 0.0:
-                        h *= dinv[i]
-                        c = col[i]
-                        for k in range(m):
-                            G[q, k] += h * zt[k, c]
-        else:
-            # d: the eigenvalues mu of A
-            for k in range(m):
+                r0[k] = zt[k, 0] / den
+                r1[k] = zt[k, 1] / den
+                one_mu = d[k] / den  # 1 - mu, without the cancellation for slow modes
+            else:  # d: the eigenvalues mu of A
                 mu[k] = d[k]
                 r0[k] = zt[k, 0]
                 r1[k] = zt[k, 1]
-                # steady start: the fixed point of z <- mu z + r u^0 (that of M T = N T + p u^0: K T = p u^0)
-                z[k] = (r0[k] * ue[0] + r1[k] * ui[0]) / (1.0 - mu[k])
-                for q in range(n_q):
-                    G[q, k] = zt[k, 2 + q]
-        if has_t0:
-            for k in range(m):
-                z[k] = zt[k, ncol - 1]
+                one_mu = 1.0 - mu[k]
+            # steady start: the fixed point of z <- mu z + r u^0 (that of M T = N T + p u^0: K T = p u^0)
+            z[k] = zt[k, ncol - 1] if has_t0 else (r0[k] * ue[0] + r1[k] * ui[0]) / one_mu
+            for q in range(n_q):
+                G[q, k] = zt[k, 2 + q]
         # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
         # and a step costs two multiply-adds per mode instead of three (a mode the interior does not
         # reach gets a negligible stand-in coupling instead of a zero, 1e-150 of the largest)
