@@ -183,66 +183,82 @@ def apply_w(nrot, rot_i, rot_cs, x):
 
 @njit(cache=True)
 def _householder(a, beta):
-    """Reduce the symmetric ``a`` (m, m) to tridiagonal form in place, ``a = Q T Q^T``: on return
-    ``a[k, k]`` and ``a[k + 1, k]`` hold T's diagonal and off-diagonal, row ``k`` beyond column k
-    the Householder vector ``v_k`` (acting on indices ``k + 1 ..``) and ``beta[k]`` its factor
-    (``H_k = I - beta_k v_k v_k^T``, ``Q = H_0 H_1 ... H_{m-3}``). O(m^3)."""
+    """Reduce the symmetric ``a`` (m, m; its lower triangle is read) to tridiagonal form in place,
+    ``a = Q T Q^T``, from the last row up (EISPACK's tred2 order): step k (k = m - 1 .. 2) reflects the
+    leading block ``0 .. k - 1`` so that row k of it keeps only its off-diagonal. On return ``a[k, k]``
+    and ``a[k, k + 1]`` hold T's diagonal and off-diagonal, row ``k`` left of column k the Householder
+    vector ``v_k`` (acting on indices ``0 .. k - 1``) and ``beta[k]`` its factor
+    (``H_k = I - beta_k v_k v_k^T``, ``Q = H_{m-1} ... H_2``). O(m^3); the block is kept in both
+    triangles and every inner loop runs along a row from its start (LLVM vectorises them)."""
     m = a.shape[0]
+    for i in range(m):
+        for j in range(i):
+            a[j, i] = a[i, j]
     p = np.empty(m)
-    for k in range(m - 2):
+    for k in range(m - 1, 1, -1):
         alpha = 0.0
-        for i in range(k + 1, m):
-            alpha += a[i, k] * a[i, k]
+        for j in range(k):
+            alpha += a[k, j] * a[k, j]
         alpha = np.sqrt(alpha)
-        if a[k + 1, k] > 0.0:
+        if a[k, k - 1] > 0.0:
             alpha = -alpha
+        a[k - 1, k] = alpha  # T's off-diagonal (the block's upper part of column k is not read again)
+        a[k, k - 1] -= alpha  # v = x - alpha e_{k-1}, in row k (which holds x)
         vv = 0.0
-        for i in range(k + 1, m):  # v = x - alpha e_1, stored in row k
-            a[k, i] = a[i, k]
-        a[k, k + 1] -= alpha
-        for i in range(k + 1, m):
-            vv += a[k, i] * a[k, i]
-        if vv == 0.0:  # the column is already reduced
+        for j in range(k):
+            vv += a[k, j] * a[k, j]
+        if vv == 0.0:  # the row is already reduced
             beta[k] = 0.0
             continue
         b = 2.0 / vv
         beta[k] = b
-        # B <- H B H on the trailing block: p = b B v, w = p - (b/2)(v.p) v, B -= v w^T + w v^T
+        # B <- H B H on the leading block: p = b B v, w = p - (b/2)(v.p) v, B -= v w^T + w v^T
+        for i in range(k):
+            p[i] = 0.0
+        for j in range(k):  # B v as a sum of B's rows (B is symmetric)
+            vj = a[k, j]
+            for i in range(k):
+                p[i] += a[j, i] * vj
         vp = 0.0
-        for i in range(k + 1, m):
-            acc = 0.0
-            for j in range(k + 1, m):
-                acc += (a[i, j] if i >= j else a[j, i]) * a[k, j]  # B from the lower triangle
-            p[i] = b * acc
+        for i in range(k):
+            p[i] *= b
             vp += a[k, i] * p[i]
         hk = 0.5 * b * vp
-        for i in range(k + 1, m):
+        for i in range(k):
             p[i] -= hk * a[k, i]
-        for i in range(k + 1, m):
-            for j in range(k + 1, i + 1):
-                a[i, j] -= a[k, i] * p[j] + p[i] * a[k, j]
-        a[k + 1, k] = alpha
+        for i in range(k):
+            vi = a[k, i]
+            pi = p[i]
+            for j in range(k):
+                a[i, j] -= vi * p[j] + pi * a[k, j]
 
 
 @njit(cache=True)
 def _apply_q(a, beta, y, transposed):
     """Y <- Q Y, or Q^T Y (node-like coordinates to those of the tridiagonal T) when ``transposed``,
-    column by column; Q from :func:`_householder` (each reflection H_k = I - beta_k v_k v_k^T is
-    symmetric: Q^T applies them in the opposite order). (Call it with a runtime bool, e.g.
-    ``np.bool_(True)``: a literal would compile one copy per value.)"""
+    for every column of ``y`` at once; Q from :func:`_householder` (each reflection
+    H_k = I - beta_k v_k v_k^T is symmetric: Q^T applies them in the opposite order). (Call it with a
+    runtime bool, e.g. ``np.bool_(True)``: a literal would compile one copy per value.)"""
     m = a.shape[0]
+    n = y.shape[1]
+    s = np.empty(n)
     for step in range(m - 2):
-        k = step if transposed else m - 3 - step
+        k = m - 1 - step if transposed else step + 2
         b = beta[k]
         if b == 0.0:
             continue
-        for c in range(y.shape[1]):
-            s = 0.0
-            for i in range(k + 1, m):
-                s += a[k, i] * y[i, c]
-            s *= b
-            for i in range(k + 1, m):
-                y[i, c] -= s * a[k, i]
+        for c in range(n):
+            s[c] = 0.0
+        for i in range(k):
+            vi = a[k, i]
+            for c in range(n):
+                s[c] += vi * y[i, c]
+        for c in range(n):
+            s[c] *= b
+        for i in range(k):
+            vi = a[k, i]
+            for c in range(n):
+                y[i, c] -= s[c] * vi
 
 
 @njit(cache=True)
@@ -804,7 +820,7 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
             for i in range(m):
                 d[i] = a[i, i]
                 if i + 1 < m:
-                    ee[i] = a[i + 1, i]
+                    ee[i] = a[i, i + 1]
             _lower_solve_rows(ld, lo, zt)  # (the state column is still zero)
             if has_t0:
                 for i in range(m):
