@@ -80,7 +80,13 @@ N_FUSED = 5
 N_PAT_W = 20
 
 
-@njit(cache=True)
+def _inner(fastmath=False):
+    """The decorator of the modal kernel's inner functions: compiled (and cached) for calls from compiled
+    code only, without the CPython and C entry points numba would otherwise compile for each."""
+    return njit(cache=True, fastmath=fastmath, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+@_inner()
 def tridiag_ql(d, e, zt, rot_i, rot_cs):
     """Eigenvalues of a symmetric tridiagonal matrix by implicit QL with Wilkinson shifts.
 
@@ -168,7 +174,7 @@ def tridiag_ql(d, e, zt, rot_i, rot_cs):
     return nrot, rot_i, rot_cs
 
 
-@njit(cache=True)
+@_inner()
 def apply_w(nrot, rot_i, rot_cs, x):
     """x <- W x (eigenvector coordinates to node coordinates), W from :func:`tridiag_ql`."""
     for k in range(nrot - 1, -1, -1):
@@ -181,7 +187,7 @@ def apply_w(nrot, rot_i, rot_cs, x):
         x[i + 1] = c * b - s * a
 
 
-@njit(cache=True)
+@_inner()
 def _householder(a, beta):
     """Reduce the symmetric ``a`` (m, m; its lower triangle is read) to tridiagonal form in place,
     ``a = Q T Q^T``, from the last row up (EISPACK's tred2 order): step k (k = m - 1 .. 2) reflects the
@@ -233,7 +239,7 @@ def _householder(a, beta):
                 a[i, j] -= vi * p[j] + pi * a[k, j]
 
 
-@njit(cache=True)
+@_inner()
 def _apply_q(a, beta, y, transposed):
     """Y <- Q Y, or Q^T Y (node-like coordinates to those of the tridiagonal T) when ``transposed``,
     for every column of ``y`` at once; Q from :func:`_householder` (each reflection
@@ -261,7 +267,7 @@ def _apply_q(a, beta, y, transposed):
                 y[i, c] -= s[c] * vi
 
 
-@njit(cache=True)
+@_inner()
 def _lower_solve_rows(ld, lo, y):
     """Y <- L^-1 Y, row by row (every column at once), for the lower bidiagonal L (diagonal ld,
     subdiagonal lo)."""
@@ -432,7 +438,7 @@ def modal_plan(out_step, out_w, theta, ue, ui, dt) -> ModalPlan:
     )
 
 
-@njit(cache=True)
+@_inner()
 def _rows(cap, g, pa, pb, pw, dl, dw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     """K over the unknowns (kd, ko), output rows over nodes and their input coefficients.
 
@@ -490,7 +496,7 @@ def _rows(cap, g, pa, pb, pw, dl, dw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     return pe, pi
 
 
-@njit(cache=True, fastmath=True)
+@_inner(fastmath=True)
 def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
     """Per output pattern and requested row: ``Gs = G P(mu) rho`` over the anchor's scaled state
     ``y = z / rho`` and ``H``, the coefficients of ``s`` at steps base .. base + 2 (channels
@@ -601,7 +607,7 @@ def _form(k_out, y, Gs, rq, opat, ow, out):
         out[q, k_out] = acc
 
 
-@njit(cache=True, fastmath=True)
+@_inner(fastmath=True)
 def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
     """Add the input terms of every output, ``sum_p w_p H[p, q] . sw + D[q] . feat``: the main
     pattern and the non-zero ``D`` coefficients in passes vectorised over the outputs, the other
@@ -628,7 +634,7 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
             oq[k] += xw[j] * acc
 
 
-@njit(cache=True, fastmath=True)
+@_inner(fastmath=True)
 def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_steps):
     """The pass over the steps of one candidate, stopping at each output's anchor (see the module
     docstring): the hot loop, in one function compiled with fastmath and its steps inlined (the
