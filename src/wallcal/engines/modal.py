@@ -47,18 +47,20 @@ Per candidate (everything inside the numba batch loop; a batch is split over thr
    link conductances and the probe interpolation weights (no Python per candidate).
 2. ``S = Cap^-1/2 K Cap^-1/2`` is symmetric *tridiagonal*. Its eigenvalues come
    from implicit QL with Wilkinson shifts (:func:`tridiag_ql`); the plane
-   rotations are applied only to the few rows of the eigenvector matrix the
-   outputs need (both ends, the probes' nodes) and recorded, so that the initial
-   and final states can be mapped with them. O(m^2) instead of the O(m^3) of a
-   dense ``eigh``, and no LAPACK/BLAS call (no threads of its own inside ours).
+   rotations are applied only to a few columns (the couplings ``p_e``, ``p_i``, the
+   output rows and the initial state, scaled by ``Cap^-1/2``, resp. ``Cap^1/2``), which
+   gives them in modal coordinates, ``V^T x = W^T Cap^-1/2 x``, and recorded, so that the
+   final state can be mapped back. O(m^2) instead of the O(m^3) of a dense ``eigh``, and
+   no LAPACK/BLAS call (no threads of its own inside ours).
 2'. Otherwise: ``M = L L^T`` (bidiagonal ``L``), ``A = L^-1 N L^-T`` (dense), Householder
-   reduction ``A = Q T Q^T`` (:func:`_householder`, O(m^3)), the same QL on ``T``; the couplings
-   and output rows are mapped as ``V^T x = W^T Q^T L^-1 x`` before the QL (as columns of ``zt``).
+   reduction ``A = Q T Q^T`` (:func:`_householder`, O(m^3)), the same QL on ``T``; the same
+   columns are mapped as ``V^T x = W^T Q^T L^-1 x`` (the initial state as ``W^T Q^T L^T T``).
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
-   over the steps: between two anchors five steps apart (5-minute data at
-   1-minute steps), one loop over the modes forms the anchor's output rows and
-   steps five times (:func:`_dots_step5`); otherwise the rows are formed
-   (:func:`_form`) and the state is stepped four steps per pass (:func:`_advance`).
+   over the steps (:func:`_recursion`): between two anchors five steps apart (5-minute
+   data at 1-minute steps), one loop over the modes forms the anchor's output rows and
+   steps five times; otherwise the rows are formed by dot products and the state is
+   stepped four steps per pass. The input terms of all outputs are added afterwards
+   (:func:`_input_terms`).
    Memory does not depend on the number of steps.
 """
 
@@ -73,7 +75,7 @@ from . import boundary, operator
 
 #: columns of the per-output input features (see :func:`output_plan`)
 N_FEAT = 6
-#: output rows formed in the fused pass (more requested rows are formed by :func:`_form`)
+#: output rows formed in the fused pass of :func:`_recursion` (more requested rows are formed by dot products)
 N_FUSED = 5
 #: weights per output pattern: probe rows (4 states), exterior and interior face flux (4 + 4), the new and
 #: old levels of a step quantity (4 + 4; depth-flux rows)
@@ -531,82 +533,6 @@ def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
                 H[p, q, 2 * i + 1] = h1
 
 
-@njit(cache=True, fastmath=True, inline="always")
-def _advance(y, mu, al, s, n_from, n_to):
-    """Advance the scaled modal state ``y = z / r1`` from grid time n_from to n_to (in place):
-    ``y <- mu y + (alpha s0 + s1)``, two multiply-adds per mode and step, four steps per pass over
-    the modes (the state stays in a register in between), then single steps."""
-    m = y.shape[0]
-    n = n_from
-    while n + 4 <= n_to:
-        a0, a1, a2, a3 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0]
-        b0, b1, b2, b3 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1]
-        for k in range(m):
-            u = mu[k]
-            f = al[k]
-            yk = u * y[k] + (f * a0 + b0)
-            yk = u * yk + (f * a1 + b1)
-            yk = u * yk + (f * a2 + b2)
-            y[k] = u * yk + (f * a3 + b3)
-        n += 4
-    while n < n_to:
-        a0 = s[n, 0]
-        b0 = s[n, 1]
-        for k in range(m):
-            y[k] = mu[k] * y[k] + (al[k] * a0 + b0)
-        n += 1
-
-
-@njit(cache=True, fastmath=True, inline="always")
-def _dots_step5(y, mu, al, s, n, gf):
-    """The dot products of the scaled state at grid time n with the five rows of ``gf`` (padded with
-    zero rows), and five steps on (to n + 5), in one pass over the modes. (The rows are one 2-D
-    array indexed by constants: separate arrays, or a 3-D array indexed by runtime rows, need more
-    runtime aliasing checks than LLVM accepts, and the loop then runs scalar.)"""
-    m = y.shape[0]
-    a0, a1, a2, a3, a4 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0], s[n + 4, 0]
-    b0, b1, b2, b3, b4 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1], s[n + 4, 1]
-    d0 = 0.0
-    d1 = 0.0
-    d2 = 0.0
-    d3 = 0.0
-    d4 = 0.0
-    for k in range(m):
-        zk = y[k]
-        d0 += gf[0, k] * zk
-        d1 += gf[1, k] * zk
-        d2 += gf[2, k] * zk
-        d3 += gf[3, k] * zk
-        d4 += gf[4, k] * zk
-        u = mu[k]
-        f = al[k]
-        zk = u * zk + (f * a0 + b0)
-        zk = u * zk + (f * a1 + b1)
-        zk = u * zk + (f * a2 + b2)
-        zk = u * zk + (f * a3 + b3)
-        y[k] = u * zk + (f * a4 + b4)
-    return d0, d1, d2, d3, d4
-
-
-@njit(cache=True, fastmath=True, inline="always")
-def _form(k_out, y, Gs, rq, opat, ow, out):
-    """The state part of output k_out from the state at its anchor: a dot product per requested
-    row and pattern (the input terms are added by :func:`_input_terms`)."""
-    m = y.shape[0]
-    for q in rq:
-        acc = 0.0
-        for c2 in range(2):
-            wgt = ow[k_out, c2]
-            if wgt == 0.0:
-                continue
-            gq = Gs[opat[k_out, c2], q]
-            dot = 0.0
-            for k in range(m):
-                dot += gq[k] * y[k]
-            acc += wgt * dot
-        out[q, k_out] = acc
-
-
 @_inner(fastmath=True)
 def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
     """Add the input terms of every output, ``sum_p w_p H[p, q] . sw + D[q] . feat``: the main
@@ -637,15 +563,34 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
 @_inner(fastmath=True)
 def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_steps):
     """The pass over the steps of one candidate, stopping at each output's anchor (see the module
-    docstring): the hot loop, in one function compiled with fastmath and its steps inlined (the
-    candidate's set-up around it needs neither, and compiles faster without)."""
+    docstring): the hot loop, in one function compiled with fastmath (the candidate's set-up around it
+    does not need it, and compiles faster without). The scaled modal state ``y = z / r1`` advances by
+    ``y <- mu y + (alpha s0 + s1)``, two multiply-adds per mode and step, several steps per pass over
+    the modes (the state stays in a register in between)."""
+    m = y.shape[0]
     n_out = base.shape[0]
-    cur = np.int64(0)
+    n = np.int64(0)
     k_out = 0
-    while True:  # (each step function has one call site: they are inlined)
+    while True:
+        # to the next anchor: four steps per pass over the modes, then single steps
         b = base[k_out] if k_out < n_out else np.int64(n_steps)
-        _advance(y, mu, al, s, cur, b)
-        cur = b
+        while n + 4 <= b:
+            a0, a1, a2, a3 = s[n, 0], s[n + 1, 0], s[n + 2, 0], s[n + 3, 0]
+            b0, b1, b2, b3 = s[n, 1], s[n + 1, 1], s[n + 2, 1], s[n + 3, 1]
+            for k in range(m):
+                u = mu[k]
+                f = al[k]
+                yk = u * y[k] + (f * a0 + b0)
+                yk = u * yk + (f * a1 + b1)
+                yk = u * yk + (f * a2 + b2)
+                y[k] = u * yk + (f * a3 + b3)
+            n += 4
+        while n < b:
+            a0 = s[n, 0]
+            b0 = s[n, 1]
+            for k in range(m):
+                y[k] = mu[k] * y[k] + (al[k] * a0 + b0)
+            n += 1
         if k_out >= n_out:
             break
         k2 = k_out + 1
@@ -654,14 +599,52 @@ def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_s
         last = k2 - 1
         nxt = base[k2] if k2 < n_out else n_steps
         fused = nxt - b == 5 and ow[last, 1] == 0.0 and opat[last, 0] == pm0 and n_rq <= N_FUSED
-        for kk in range(k_out, k2 - 1 if fused else k2):  # outputs formed by dot products
-            _form(kk, y, Gs, rq, opat, ow, out)
-        if fused:  # the last output of the anchor and five steps on, in one pass over the modes
+        for kk in range(k_out, k2 - 1 if fused else k2):
+            # an output from the state at its anchor: a dot product per requested row and pattern
+            # (the input terms are added by _input_terms)
+            for q in rq:
+                acc = 0.0
+                for c2 in range(2):
+                    wgt = ow[kk, c2]
+                    if wgt == 0.0:
+                        continue
+                    gq = Gs[opat[kk, c2], q]
+                    dot = 0.0
+                    for k in range(m):
+                        dot += gq[k] * y[k]
+                    acc += wgt * dot
+                out[q, kk] = acc
+        if fused:
+            # the last output of the anchor (the dot products of the state with the five rows of gf,
+            # padded with zero rows) and five steps on, in one pass over the modes. (The rows are one
+            # 2-D array indexed by constants: separate arrays, or a 3-D array indexed by runtime rows,
+            # need more runtime aliasing checks than LLVM accepts, and the loop then runs scalar.)
+            a0, a1, a2, a3, a4 = s[b, 0], s[b + 1, 0], s[b + 2, 0], s[b + 3, 0], s[b + 4, 0]
+            b0, b1, b2, b3, b4 = s[b, 1], s[b + 1, 1], s[b + 2, 1], s[b + 3, 1], s[b + 4, 1]
+            d0 = 0.0
+            d1 = 0.0
+            d2 = 0.0
+            d3 = 0.0
+            d4 = 0.0
+            for k in range(m):
+                zk = y[k]
+                d0 += gf[0, k] * zk
+                d1 += gf[1, k] * zk
+                d2 += gf[2, k] * zk
+                d3 += gf[3, k] * zk
+                d4 += gf[4, k] * zk
+                u = mu[k]
+                f = al[k]
+                zk = u * zk + (f * a0 + b0)
+                zk = u * zk + (f * a1 + b1)
+                zk = u * zk + (f * a2 + b2)
+                zk = u * zk + (f * a3 + b3)
+                y[k] = u * zk + (f * a4 + b4)
             w0 = ow[last, 0]
-            d5 = _dots_step5(y, mu, al, s, b, gf)
+            d5 = (d0, d1, d2, d3, d4)
             for i in range(n_rq):
                 out[fq[i], last] = w0 * d5[i]
-            cur = b + 5
+            n = b + 5
         k_out = k2
 
 
@@ -883,7 +866,7 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 Gs[p, n_q, k] = 0.0
         _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H)
         # the fused rows of the main pattern, extracted once (a view per output would cost reference
-        # counting in the loop; other patterns go through _form)
+        # counting in the loop; other patterns are formed by dot products)
         pm0 = pmain[0]
         gf = np.empty((N_FUSED, m))  # one array: LLVM checks its rows against the state as one object
         for i in range(N_FUSED):
