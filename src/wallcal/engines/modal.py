@@ -94,16 +94,16 @@ def tridiag_ql(d, e, zt, rot_i, rot_cs):
 
     d : (m,) diagonal, overwritten by the eigenvalues (unsorted);
     e : (m,) off-diagonal, e[i] couples i and i + 1 (e[m-1] is workspace); overwritten.
-    zt : (m, r) selected rows of the identity, transposed (zt[i, j] = 1 if row j is node i);
-        on return zt[k, j] is the component at that node of eigenvector k.
+    zt : (m, r) columns to map to eigenvector coordinates: on return ``W^T zt`` (a column that is
+        the unit vector of node i then holds the components at node i of every eigenvector).
     rot_i, rot_cs : storage for the plane rotations (index, (c, s)); the eigenvector matrix is
         ``W = R_1 R_2 ... R_n`` (see :func:`apply_w`). Grown when full.
 
     Returns (n_rotations, rot_i, rot_cs), n_rotations = -1 if an eigenvalue failed to converge.
     This is EISPACK's tql2 (Numerical Recipes' tqli) with the rotations recorded instead of
-    accumulated into a full m x m matrix: only the rows needed for the outputs are formed, and
-    the initial and final states are mapped with the recorded rotations, so the whole
-    decomposition costs O(m^2) instead of O(m^3).
+    accumulated into a full m x m matrix: only the few columns the outputs need are mapped, and
+    the final state is mapped back with the recorded rotations, so the whole decomposition costs
+    O(m^2) instead of O(m^3).
     """
     m = d.shape[0]
     r = zt.shape[1]
