@@ -432,3 +432,36 @@ def test_forward_selection_polishes_close_contenders_and_adopts_ties():
     fit, adopted, tied, calls = run({"A": -100.0, "B": -90.0, "C": far}, {("B",): -97.0}, combos)
     assert adopted == ("A",) and not tied and fit.bic == -100.0
     assert ("A", "B") in calls["score"] and ("A", "C") in calls["score"]
+
+
+def test_a_depth_starting_on_a_contact_node_leaves_it(probe_campaign):
+    """T3A sits 6 mm inside layer 3 but is declared at the 3|4 interface, which carries a contact link (the
+    contact resistance is a parameter): the depth starts on the contact's double node, where the probe reads the
+    mean of both sides and a finite-difference fit cannot move. Fitted also from just off the node on each side
+    (node_starts), the depth reaches the truth and the contact goes to about zero."""
+    from wallcal.analysis.diagnose import NODE_STEP, node_starts
+    from wallcal.grid import contact_node_depths
+
+    raw = tomllib.loads(probe_campaign.read_text())
+    contact = {"layers": ["3"], "property": "contact_resistance", "bounds": [0.0, 0.5], "bounds_kind": "absolute"}
+    st = parse_study(_with_params(raw, contact), probe_campaign.parent).replace(path=probe_campaign)
+    wall = st.wall
+    for lid, lam in TRUE_LAMBDA.items():
+        wall = wall.replace_layer(lid, conductivity=lam)
+    # the node: exactly the grid's double node, only with the contact link
+    i3 = st.wall.layer_index("3")
+    node = contact_node_depths(st.wall, {i3})[i3]
+    assert node == pytest.approx(st.wall.probe("T3A").depth, abs=1e-12) and contact_node_depths(st.wall) == {}
+    d = diagnose(st, start=wall, kinds=("depth",))
+    # the fit leaves the node for the true depth; the contact is no longer needed
+    assert d.adopted == ["depth[T3A]"]
+    assert d.x["depth[T3A]"] == pytest.approx(0.094, abs=5e-4)
+    assert d.x["contact_resistance[3]"] < 0.01
+    sp = d.study.calibration
+    x = np.array([d.x.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
+    j = sp.names.index("depth[T3A]")
+    x[j] = node  # the starts: on the node and 1 mm to each side for the depth; the other parameters unchanged
+    starts = node_starts(sp, st.wall, sp.contact_layers, x)
+    assert [s[j] - node for s in starts] == pytest.approx([0.0, -NODE_STEP, NODE_STEP], abs=1e-12)
+    assert all(np.array_equal(np.delete(s, j), np.delete(x, j)) for s in starts)
+    assert len(node_starts(sp, st.wall, frozenset(), x)) == 1  # no contact link: no jump, one start

@@ -280,6 +280,27 @@ def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]
     return cap, g
 
 
+def node_tolerance(thickness: float) -> float:
+    """Distance [m] within which :func:`probe_weights` reads a probe on a node, for a wall ``thickness`` [m]."""
+    return 1e-12 * max(1.0, float(thickness))
+
+
+def contact_node_depths(wall: Wall, contact_layers: set[int] | frozenset[int] = frozenset()) -> dict[int, float]:
+    """Depths [m] of the double nodes that :func:`build_grid` places at contact links, by the index of the layer
+    whose contact resistance the link carries (accumulated as :func:`build_grid` does).
+
+    A probe within :func:`node_tolerance` of one of them reads a side of the contact or the mean of both
+    (:func:`probe_weights`): its reading jumps when its depth moves off the node to either side.
+    """
+    out: dict[int, float] = {}
+    depth = 0.0
+    for i, layer in enumerate(wall.layers[:-1]):
+        depth += layer.thickness
+        if layer.contact_resistance > 0 or i in contact_layers:
+            out[i] = depth
+    return out
+
+
 def probe_weights(grid: Grid, depths: np.ndarray, sides: list[str | None]) -> tuple[np.ndarray, ...]:
     """Interpolation of probe temperatures between nodes.
 
@@ -301,7 +322,7 @@ def probe_weights(grid: Grid, depths: np.ndarray, sides: list[str | None]) -> tu
     x = grid.x
     n = len(x)
     d = np.clip(np.atleast_2d(np.asarray(depths, dtype=float)), 0.0, x[-1])
-    tol = 1e-12 * max(1.0, x[-1])
+    tol = node_tolerance(x[-1])
     first = np.searchsorted(x, d - tol, side="left")  # first node at or after d
     last = np.searchsorted(x, d + tol, side="right") - 1  # last node at or before d
     # between two nodes: linear

@@ -48,6 +48,7 @@ __all__ = [
     "ar1_loglike",
     "debiased_residuals",
     "diagnose",
+    "node_starts",
     "propose",
     "residual_analysis",
 ]
@@ -79,6 +80,10 @@ POLISH_MARGIN = 25.0
 BASE_JACOBIANS = 4
 #: Jacobians allowed in each warm-started recalibration
 MAX_JACOBIANS = 8
+#: a probe depth that starts on a contact's double node is also fitted from this far off it on each side [m]
+#: (at most NODE_SHARE of its range; see :func:`node_starts`)
+NODE_STEP = 0.001
+NODE_SHARE = 0.1
 #: relative change of the least-squares cost that ends a recalibration (a BIC change of 1 is about 2 / N)
 FTOL = 1e-5
 #: after the single candidates, each forward step tries the best few useful ones only
@@ -700,6 +705,53 @@ def refine(residuals, u0, max_jacobians: int = MAX_JACOBIANS, ftol: float = FTOL
     return u, runs
 
 
+def node_starts(space, wall, contact_layers, x) -> list[np.ndarray]:
+    """The starts of a recalibration from ``x``: ``x`` itself, and where a probe's depth starts on a contact's
+    double node, also just off the node on each side.
+
+    At a contact link the grid has two nodes at one depth (:func:`wallcal.grid.contact_node_depths`); a probe
+    on it reads one side or the mean of both, so its reading - and the objective - jumps when the depth moves off
+    the node either way. A gradient fit (finite-difference Jacobians) started on the node cannot leave it; started
+    :data:`NODE_STEP` (at most :data:`NODE_SHARE` of the range) to either side, inside the bounds, it follows the
+    objective on that side. Each such depth gets the three values (on, before and after the node); several such
+    depths, every combination.
+
+    Parameters
+    ----------
+    space : ParameterSpace
+    wall : Wall
+        The wall the engine builds its grid from.
+    contact_layers : set of int
+        Layers with a contact link even at zero resistance (the engine input's ``options.contact_layers``).
+    x : ndarray, shape (n,)
+        Parameter values [SI].
+
+    Returns
+    -------
+    list of ndarray, shape (n,)
+        ``x`` first.
+    """
+    from ..grid import contact_node_depths, node_tolerance
+
+    x = np.asarray(x, dtype=float)
+    nodes = np.array(list(contact_node_depths(wall, contact_layers).values()))
+    tol = node_tolerance(wall.thickness)
+    starts = [x]
+    for j, p in enumerate(space.parameters):
+        if p.probe is None or not len(nodes) or np.abs(nodes - x[j]).min() > tol:
+            continue
+        step = min(NODE_STEP, NODE_SHARE * (p.upper - p.lower))
+        values = [v for v in (x[j] - step, x[j] + step) if p.lower <= v <= p.upper]
+        more = []
+        for s in starts:
+            for v in values:
+                t = s.copy()
+                t[j] = v
+                more.append(t)
+        starts = starts + more
+    return starts
+
+
 def debiased_residuals(ev, X, bias_sd, noise) -> np.ndarray:
     """The study's least-squares residuals with every target's constant sensor bias profiled out under its
     prior: the objective sum_k w_k (sum_t (e_kt - b_k)^2 + noise_k^2 b_k^2 / bias_sd_k^2), minimised over b_k
@@ -918,16 +970,22 @@ def diagnose(
         xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
         xs = np.clip(xs, sp.lower, sp.upper)
         ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau)[0] if ll_before is not None else 0.0
-        u, n_runs = refine(
-            lambda U: debiased_residuals(ev, sp.from_unit(U), tau, noise),
-            sp.to_unit(xs),
-            jacobians or max_jacobians,
-            FTOL,
-        )
-        x = sp.from_unit(u)
-        E = ev.errors(x[None])[0]
-        evaluations += n_runs + 2
-        ll, n, _, _ = ar1_profile(E, ev.mask, tau)
+        # a probe depth starting on a contact's double node is also fitted from just off it (node_starts)
+        best = None
+        for s in node_starts(sp, ev.inp.wall, ev.inp.options.contact_layers, xs):
+            u, n_runs = refine(
+                lambda U: debiased_residuals(ev, sp.from_unit(U), tau, noise),
+                sp.to_unit(s),
+                jacobians or max_jacobians,
+                FTOL,
+            )
+            x = sp.from_unit(u)
+            E = ev.errors(x[None])[0]
+            evaluations += n_runs + 2
+            ll, n, _, _ = ar1_profile(E, ev.mask, tau)
+            if best is None or ll > best[0]:
+                best = (ll, n, x, E)
+        ll, n, x, E = best
         if ll_before is not None:
             ll = ll_before + (ll - ll0)
         rmse = np.sqrt(np.einsum("tk,tk->t", E, E) / ev.n_valid)
