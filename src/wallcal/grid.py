@@ -183,8 +183,7 @@ def build_grid(
             depth += layer.thickness
             npl.append(n)
         last.append(len(xs) - 1)
-        is_last = i == len(wall.layers) - 1
-        if not is_last and (layer.contact_resistance > 0 or i in contact_layers):
+        if has_contact_link(wall, i, contact_layers):
             xs.append(depth)
             link_layer.append(-1)
             link_contact.append(i)
@@ -285,6 +284,13 @@ def node_tolerance(thickness: float) -> float:
     return 1e-12 * max(1.0, float(thickness))
 
 
+def has_contact_link(wall: Wall, i: int, contact_layers: set[int] | frozenset[int] = frozenset()) -> bool:
+    """Whether :func:`build_grid` places a contact link (a double node) behind layer ``i``: a contact
+    resistance on the layer, or the layer among ``contact_layers`` (a calibrated contact); never behind the
+    last layer."""
+    return i < len(wall.layers) - 1 and (wall.layers[i].contact_resistance > 0 or i in contact_layers)
+
+
 def contact_node_depths(wall: Wall, contact_layers: set[int] | frozenset[int] = frozenset()) -> dict[int, float]:
     """Depths [m] of the double nodes that :func:`build_grid` places at contact links, by the index of the layer
     whose contact resistance the link carries (accumulated as :func:`build_grid` does).
@@ -296,7 +302,7 @@ def contact_node_depths(wall: Wall, contact_layers: set[int] | frozenset[int] = 
     depth = 0.0
     for i, layer in enumerate(wall.layers[:-1]):
         depth += layer.thickness
-        if layer.contact_resistance > 0 or i in contact_layers:
+        if has_contact_link(wall, i, contact_layers):
             out[i] = depth
     return out
 
