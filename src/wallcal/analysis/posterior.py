@@ -134,9 +134,9 @@ class LogCoordinates:
         self.log = log_coordinates(space)
 
     def to_unit(self, Z):
-        Z = np.asarray(Z, dtype=float)
-        X = np.where(self.log, np.exp(np.where(self.log, Z, 0.0)), self.space.from_unit(Z))
-        return self.space.to_unit(X)
+        from .identifiability import from_z
+
+        return self.space.to_unit(from_z(self.space, Z))
 
     def from_unit(self, U):
         from .identifiability import to_z
@@ -776,7 +776,7 @@ def initial_walkers(space, x_start, nw, rng, information, weight: float = 1.0, t
     ndarray, shape (nw, n)
         Unit coordinates inside the box.
     """
-    from .identifiability import log_coordinates, prior_sd_z, to_z
+    from .identifiability import from_z, log_coordinates, prior_sd_z, to_z
 
     x_start = np.asarray(x_start, dtype=float)
     lg = log_coordinates(space)
@@ -789,8 +789,7 @@ def initial_walkers(space, x_start, nw, rng, information, weight: float = 1.0, t
     todo = np.arange(nw)
     for _ in range(tries):
         Z = z0[None] + np.linalg.solve(L.T, rng.standard_normal((space.n, len(todo)))).T
-        X = np.where(lg[None], np.exp(np.where(lg[None], Z, 0.0)), space.from_unit(Z))
-        Ui = space.to_unit(X)
+        Ui = space.to_unit(from_z(space, Z))
         ok = np.all((Ui > 0.0) & (Ui < 1.0), axis=1)
         U[todo[ok]] = Ui[ok]
         todo = todo[~ok]
