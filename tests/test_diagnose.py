@@ -414,7 +414,7 @@ def test_forward_selection_polishes_close_contenders_and_adopts_ties():
             return F(names=f.names, bic=polished.get(f.names, f.bic))
 
         singles = {n: F(names=(n,), bic=v) for n, v in values.items()}
-        fit, adopted, tied = forward_select(F(names=(), bic=0.0), singles, score, polish, lambda names: True)
+        fit, adopted, tied, _ = forward_select(F(names=(), bic=0.0), singles, score, polish, lambda names: True)
         return fit, adopted, tied, calls
 
     # A leads B by less than the margin, but B polished ends as good as A: both adopted; C (far) never polished
@@ -465,3 +465,46 @@ def test_a_depth_starting_on_a_contact_node_leaves_it(probe_campaign):
     assert [s[j] - node for s in starts] == pytest.approx([0.0, -NODE_STEP, NODE_STEP], abs=1e-12)
     assert all(np.array_equal(np.delete(s, j), np.delete(x, j)) for s in starts)
     assert len(node_starts(sp, st.wall, frozenset(), x)) == 1  # no contact link: no jump, one start
+
+
+def test_a_structure_holding_parameters_at_bounds_needs_only_positive_evidence():
+    """Selection on scripted criterion values and bound sets: once the adopted structure holds a study parameter at
+    a bound of its prior box (it fails its own check), a candidate that frees it is adopted on positive evidence
+    (WEAK_DELTA); not when the structure holds nothing (the strong threshold protects a plausible one), nor when
+    the candidate does not free it, nor when its gain falls short of WEAK_DELTA."""
+    from types import SimpleNamespace as F
+
+    from wallcal.analysis.diagnose import WEAK_DELTA, forward_select
+
+    gain = (ADOPT_DELTA + WEAK_DELTA) / 2  # between the two thresholds
+
+    def run(held, combos, held_combos, singles=None):
+        def score(names, warm):
+            key = tuple(sorted(names))
+            return F(names=tuple(names), bic=combos[key], held=frozenset(held_combos.get(key, ())))
+
+        singles = singles or {"A": (-100.0, held), "B": (-50.0, held)}
+        fits = {n: F(names=(n,), bic=b, held=frozenset(h)) for n, (b, h) in singles.items()}
+        base = F(names=(), bic=0.0, held=frozenset({"lambda[3]"}))
+        return forward_select(base, fits, score, lambda f: f, lambda names: True, held=lambda f: f.held)
+
+    both = {("A", "B"): -100.0 - gain}
+    # A holds lambda[3] at its bound; A + B frees it with a gain below ADOPT_DELTA: adopted on the weaker threshold
+    fit, adopted, tied, weak = run({"lambda[3]"}, both, {})
+    assert adopted == ("A", "B") and fit.bic == -100.0 - gain and not tied
+    assert weak == [(["B"], pytest.approx(-gain), frozenset({"lambda[3]"}), frozenset())]
+    # A holds nothing: the strong threshold stands
+    fit, adopted, _, weak = run(set(), both, {})
+    assert adopted == ("A",) and not weak
+    # A + B still holds lambda[3]: it does not remove the rejection, not adopted
+    fit, adopted, _, weak = run({"lambda[3]"}, both, {("A", "B"): {"lambda[3]"}})
+    assert adopted == ("A",) and not weak
+    # A + B frees it but gains less than WEAK_DELTA: not adopted
+    fit, adopted, _, weak = run({"lambda[3]"}, {("A", "B"): -100.0 - WEAK_DELTA / 2}, {})
+    assert adopted == ("A",) and not weak
+    # at the first step too: no candidate reaches ADOPT_DELTA against a base that holds lambda[3]; of the two that
+    # gain WEAK_DELTA, the better one does not free it, the other does and is adopted
+    fit, adopted, _, weak = run(
+        set(), {}, {}, singles={"A": (-gain - 1.0, {"lambda[3]"}), "B": (-gain, ()), "C": (-WEAK_DELTA / 2, ())}
+    )
+    assert adopted[0] == "B" and weak[0][0] == ["B"]

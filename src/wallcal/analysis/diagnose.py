@@ -43,11 +43,14 @@ from ..errors import StudyError, WallcalError
 
 __all__ = [
     "ADOPT_DELTA",
+    "WEAK_DELTA",
     "Diagnosis",
     "Extension",
     "ar1_loglike",
     "debiased_residuals",
     "diagnose",
+    "forward_select",
+    "held_at_bounds",
     "node_starts",
     "propose",
     "residual_analysis",
@@ -71,6 +74,12 @@ OFFSET_SPREAD = 0.25
 #: prior sd of a target's constant sensor bias, integrated out of the criterion, as a share of its stated
 #: accuracy (a 95 % bound: its sd is about half of it; the posterior's error model)
 BIAS_ACCURACY_SHARE = 0.5
+#: BIC decrease that suffices while the structure adopted so far is rejected by its own optimum - one of the study's
+#: parameters held at a bound of its prior box (Kass and Raftery: > 2 is "positive" evidence) - and the candidate
+#: frees it (see :func:`forward_select`)
+WEAK_DELTA = 2.0
+#: a parameter whose optimum lies within this share of its range from a bound is held at that bound
+BOUND_BAND = 0.005
 #: extensions whose criterion lies within this of the best one's are tied: adopted together (Kass and Raftery:
 #: a BIC difference below 2 is "not worth more than a bare mention")
 TIE_DELTA = 2.0
@@ -752,6 +761,15 @@ def node_starts(space, wall, contact_layers, x) -> list[np.ndarray]:
     return starts
 
 
+def held_at_bounds(space, x, names=None, band: float = BOUND_BAND) -> frozenset:
+    """The parameters of ``space`` (those in ``names``; default all) whose value in ``x`` [SI] lies within
+    ``band`` of its range from a bound of the prior box, in the space's unit coordinates."""
+    u = space.to_unit(np.asarray(x, dtype=float))
+    return frozenset(
+        n for n, v in zip(space.names, u, strict=True) if (names is None or n in names) and (v <= band or v >= 1 - band)
+    )
+
+
 def debiased_residuals(ev, X, bias_sd, noise) -> np.ndarray:
     """The study's least-squares residuals with every target's constant sensor bias profiled out under its
     prior: the objective sum_k w_k (sum_t (e_kt - b_k)^2 + noise_k^2 b_k^2 / bias_sd_k^2), minimised over b_k
@@ -785,7 +803,7 @@ def debiased_residuals(ev, X, bias_sd, noise) -> np.ndarray:
     return np.concatenate([r.reshape(e.shape[0], -1), prior], axis=1)
 
 
-def forward_select(base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED):
+def forward_select(base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED, held=None):
     """Forward selection of extensions by the criterion (the ``bic`` of each fit; lower is better).
 
     The best single candidate is adopted when it lowers the criterion by at least :data:`ADOPT_DELTA`; then the
@@ -793,7 +811,13 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
     adopted set, and so on, at most ``max_adopted`` extensions. At each step the candidates within
     :data:`POLISH_MARGIN` of the step's best are polished (fitted to convergence) before they are compared, and
     those that end within :data:`TIE_DELTA` of the best are tied: adopted together with it when the set still
-    lowers the criterion by :data:`ADOPT_DELTA` (the data cannot choose between them).
+    lowers the criterion by the step's threshold (the data cannot choose between them).
+
+    A structure whose optimum holds one of the study's parameters at a bound of its prior box (``held``) fails
+    its own check: its parameters compensate for what it lacks, so it is no plausible null, and the strong
+    evidence that protects a plausible one does not apply. While it holds some, a step in which no candidate
+    reaches :data:`ADOPT_DELTA` adopts the best candidate that lowers the criterion by at least
+    :data:`WEAK_DELTA` and frees at least one of them (its optimum leaves it inside the box).
 
     Parameters
     ----------
@@ -808,17 +832,22 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
     compatible : callable
         ``compatible(names) -> bool``: whether the extensions can be adopted together.
     max_adopted : int
+    held : callable, optional
+        ``held(fit) -> frozenset`` of the study's parameters held at a bound at the fit's optimum. None: the
+        strong threshold only.
 
     Returns
     -------
-    (fit, adopted, tied)
-        The adopted set's fit, its names, and the tied groups as (names, criterion change against the best
-        one alone).
+    (fit, adopted, tied, weak)
+        The adopted set's fit, its names, the tied groups as (names, criterion change against the best one
+        alone), and the steps taken on the weaker threshold as (names adopted, criterion change of the step,
+        parameters held before, parameters held after).
     """
     useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
     current = base
     adopted: tuple = ()
     tied: list = []
+    weak: list = []
     while len(adopted) < max_adopted:
         if not adopted:
             trials = [singles[n] for n in useful]
@@ -832,8 +861,16 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         first = min(f.bic for f in trials)
         trials = [polish(f) if f.bic <= first + POLISH_MARGIN else f for f in trials]
         best = min(trials, key=lambda f: f.bic)
+        threshold = ADOPT_DELTA
+        before = frozenset() if held is None else held(current)
         if best.bic > current.bic - ADOPT_DELTA:
-            break
+            # the structure so far fails its own check (parameters held at bounds): positive evidence suffices for
+            # a candidate that frees some of them
+            freeing = [f for f in trials if f.bic <= current.bic - WEAK_DELTA and before - held(f)]
+            if not freeing:
+                break
+            best = min(freeing, key=lambda f: f.bic)
+            threshold = WEAK_DELTA
         # extensions that explain the misfit as well as the best one (within TIE_DELTA): the data cannot choose
         # between them, so all are adopted and the posterior averages over them, rather than being conditional on
         # an arbitrary choice
@@ -848,12 +885,15 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         ties = [n for n in dict.fromkeys(ties) if compatible(tuple(best.names) + (n,))]
         if ties and len(best.names) + len(ties) <= max_adopted:
             both = score(tuple(best.names) + tuple(ties), best)
-            if both.bic <= current.bic - ADOPT_DELTA:
+            if both.bic <= current.bic - threshold and (threshold == ADOPT_DELTA or before - held(both)):
                 tied.append((new + ties, both.bic - best.bic))
+                new = new + ties
                 best = both
+        if threshold != ADOPT_DELTA:
+            weak.append((new, best.bic - current.bic, before, held(best)))
         current = best
         adopted = tuple(best.names)
-    return current, adopted, tied
+    return current, adopted, tied, weak
 
 
 class _Say:
@@ -1054,8 +1094,14 @@ def diagnose(
         )
         return fits[key]
 
+    own = set(space.names)
+
+    def held(f: _Fit) -> frozenset:
+        """The study's own parameters held at a bound of their prior box at the fit's optimum."""
+        return held_at_bounds(f.space, f.x, own)
+
     singles = {e.name: score((e.name,), base) for e in exts}
-    current, adopted, tied = forward_select(base, singles, score, polish, compatible, max_adopted)
+    current, adopted, tied, weak = forward_select(base, singles, score, polish, compatible, max_adopted, held)
     rows = []
     for key, f in fits.items():
         rows.append(
@@ -1064,9 +1110,10 @@ def diagnose(
                 CRITERION: f.bic - base.bic,
                 **{f"RMSE {t}": float(r) for t, r in zip(space.targets, f.rmse, strict=True)},
                 "adopted": bool(adopted) and key == tuple(sorted(adopted)),
+                "at_bounds": ", ".join(sorted(held(f))),
             }
         )
-    cols = ["extension", CRITERION] + [f"RMSE {t}" for t in space.targets] + ["adopted"]
+    cols = ["extension", CRITERION] + [f"RMSE {t}" for t in space.targets] + ["adopted", "at_bounds"]
     cand = pd.DataFrame(rows, columns=cols)
     if len(cand):
         cand["n"] = cand["extension"].str.count(r" \+ ")
@@ -1087,6 +1134,20 @@ def diagnose(
             f"{' and '.join(names)} explain the misfit equally well (criterion within {TIE_DELTA:g}): the data cannot "
             f"choose between them, so both are adopted (criterion {cost:+.1f} against one alone) and the posterior "
             "averages over them."
+        )
+    for names, cost, before, after in weak:
+        notes.append(
+            f"{' + '.join(names)} adopted on positive evidence (criterion {cost:+.1f}; {WEAK_DELTA:g} suffices): the "
+            f"structure without it held {', '.join(sorted(before))} at a bound of the prior box, a structure its own "
+            "optimum rejects, and with it "
+            + (f"only {', '.join(sorted(after))} stay" if after else "no parameter stays")
+            + " at a bound."
+        )
+    if held(current):
+        notes.append(
+            f"At the adopted structure's optimum {', '.join(sorted(held(current)))} sit(s) at a bound of the prior "
+            "box: the data want a value the bounds forbid - the bounds are too narrow, or the structure lacks "
+            "something no candidate supplies - and the posterior's intervals are conditional on that."
         )
     if prepared.note:
         notes.append(prepared.note)
