@@ -1097,7 +1097,7 @@ def diagnose(
     own = set(space.names)
 
     def held(f: _Fit) -> frozenset:
-        """The study's own parameters held at a bound of their prior box at the fit's optimum."""
+        """The study's own parameters at a bound of their prior box at the fit's optimum."""
         return held_at_bounds(f.space, f.x, own)
 
     singles = {e.name: score((e.name,), base) for e in exts}
@@ -1110,10 +1110,10 @@ def diagnose(
                 CRITERION: f.bic - base.bic,
                 **{f"RMSE {t}": float(r) for t, r in zip(space.targets, f.rmse, strict=True)},
                 "adopted": bool(adopted) and key == tuple(sorted(adopted)),
-                "at_bounds": ", ".join(sorted(held(f))),
+                "held_at_bounds": ", ".join(sorted(held(f))),
             }
         )
-    cols = ["extension", CRITERION] + [f"RMSE {t}" for t in space.targets] + ["adopted", "at_bounds"]
+    cols = ["extension", CRITERION] + [f"RMSE {t}" for t in space.targets] + ["adopted", "held_at_bounds"]
     cand = pd.DataFrame(rows, columns=cols)
     if len(cand):
         cand["n"] = cand["extension"].str.count(r" \+ ")
@@ -1138,16 +1138,16 @@ def diagnose(
     for names, cost, before, after in weak:
         notes.append(
             f"{' + '.join(names)} adopted on positive evidence (criterion {cost:+.1f}; {WEAK_DELTA:g} suffices): the "
-            f"structure without it held {', '.join(sorted(before))} at a bound of the prior box, a structure its own "
-            "optimum rejects, and with it "
-            + (f"only {', '.join(sorted(after))} stay" if after else "no parameter stays")
-            + " at a bound."
+            f"structure without it holds {', '.join(sorted(before))} at a bound of the prior box (a structure its own "
+            "optimum rejects); with it "
+            + (", ".join(sorted(after)) if after else "none of the study's parameters")
+            + " sit(s) at a bound."
         )
     if held(current):
         notes.append(
             f"At the adopted structure's optimum {', '.join(sorted(held(current)))} sit(s) at a bound of the prior "
-            "box: the data want a value the bounds forbid - the bounds are too narrow, or the structure lacks "
-            "something no candidate supplies - and the posterior's intervals are conditional on that."
+            "box: the data want a value the bounds forbid (or do not identify it), and no candidate frees it with "
+            "positive evidence."
         )
     if prepared.note:
         notes.append(prepared.note)
