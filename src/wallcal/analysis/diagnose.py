@@ -21,8 +21,10 @@ integrated out under the posterior's prior N(0, (accuracy/2)^2) (see :func:`ar1_
 with p the calibration parameters and N the residual pairs over all targets. An extension (or a set) is
 adopted when it lowers BIC by at least :data:`ADOPT_DELTA` (10: "very strong" evidence) against the
 structure adopted so far (forward selection; the close contenders of each step fitted to convergence first;
-extensions within :data:`TIE_DELTA` of the best adopted together). The extended study (:attr:`Diagnosis.study`) is the
-study with the adopted extensions added to its ``[calibration]`` table.
+extensions within :data:`TIE_DELTA` of the best adopted together), or by :data:`WEAK_DELTA` (2: "positive") while
+the structure so far holds some of the study's parameters at a bound of their prior box and the extension frees
+one of them: such a structure fails its own check and is no null worth protecting. The extended study
+(:attr:`Diagnosis.study`) is the study with the adopted extensions added to its ``[calibration]`` table.
 """
 
 from __future__ import annotations
@@ -512,6 +514,7 @@ class Diagnosis:
             "criterion": "BIC on the AR(1) likelihood of the residuals, each target's sensor bias integrated out "
             "(prior sd half its accuracy)",
             "adopt_delta": ADOPT_DELTA,
+            "weak_delta": WEAK_DELTA,
             "bic_base": self.bic_base,
             "residual_pairs": self.n_pairs,
             "rmse_base": self.rmse_base,
