@@ -1148,7 +1148,7 @@ def diagnose(
         )
     if held(current):
         notes.append(
-            f"At the adopted structure's optimum {', '.join(sorted(held(current)))} sit(s) at a bound of the prior "
+            f"At the chosen structure's optimum {', '.join(sorted(held(current)))} sit(s) at a bound of the prior "
             "box: the data want a value the bounds forbid (or do not identify it), and no candidate frees it with "
             "positive evidence."
         )
