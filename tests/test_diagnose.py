@@ -178,7 +178,15 @@ def test_probe_offset_gets_the_depth_adopted(probe_campaign, tmp_path):
     assert d.adopted == ["depth[T3A]"]
     assert d.x["depth[T3A]"] == pytest.approx(0.094, abs=5e-4)
     c = d.candidates
-    assert list(c.columns) == ["extension", "delta_bic", "RMSE T3A", "RMSE T2A", "RMSE T1A", "adopted"]
+    assert list(c.columns) == [
+        "extension",
+        "delta_bic",
+        "RMSE T3A",
+        "RMSE T2A",
+        "RMSE T1A",
+        "adopted",
+        "held_at_bounds",
+    ]
     row = c[c["adopted"]]
     assert list(row["extension"]) == ["depth[T3A]"] and float(row["delta_bic"].iloc[0]) < -ADOPT_DELTA
     assert float(row["RMSE T3A"].iloc[0]) < 0.06  # the noise (0.05 K), from 0.39 K without the depth
