@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 import wallcal
-from wallcal.analysis.posterior import DEFAULT_STEPS, posterior
+from wallcal.analysis.posterior import posterior
 from wallcal.calibration import calibrate
 from wallcal.simulation import BATCH_NEEDS, prepare
 from wallcal.wallfile import dump_wall, load_wall
@@ -283,7 +283,7 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
 
 def effective_samples(r) -> float:
     """Effective posterior samples of a chain: walkers x steps after burn-in / the largest autocorrelation time."""
-    return r.chain.shape[1] * (r.chain.shape[0] - r.burn) / float(np.nanmax(r.tau))
+    return r.effective_samples
 
 
 def coverage(
@@ -345,7 +345,7 @@ def totals(df: pd.DataFrame) -> pd.DataFrame:
     return g
 
 
-def speed(workdir: Path, walkers: int | None, steps: int, space: str) -> None:
+def speed(workdir: Path, walkers: int | None, steps: int | None, space: str) -> None:
     """Time the posterior of a 22-parameter space on the ``all`` campaign (starting at its calibrated optimum):
     ``lambdaT`` (the study's 18 + a probe depth, a contact resistance, two lambda(T) coefficients: every
     candidate wall is nonlinear, the engine's general path) or ``linear`` (18 + a probe depth, two contact
@@ -362,12 +362,14 @@ def speed(workdir: Path, walkers: int | None, steps: int, space: str) -> None:
     dt = time.perf_counter() - t
     kind = "lambda(T) walls: the engine's general path" if space == "lambdaT" else "linear walls: the modal path"
     ess = effective_samples(r)
+    ok = "OK" if dt <= 120 and r.adequate else "SLOW" if r.adequate else "NOT ADEQUATE"
     print(
         f"posterior of a {r.space.n}-parameter space ({kind}): "
-        f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps = {r.evaluations} simulations in {dt:.1f} s "
-        f"({r.evaluations / dt:.0f}/s) -> {'OK' if dt <= 120 else 'SLOW'} (target 120 s); acceptance "
-        f"{r.acceptance:.2f}, autocorrelation time {np.nanmax(r.tau):.0f} steps, {ess:.0f} effective samples "
-        f"({ess / dt:.1f}/s)"
+        f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps = {r.evaluations} proposals, {r.simulations} "
+        f"simulated (the rest outside the prior box) in {dt:.1f} s ({r.evaluations / dt:.0f} proposals/s, "
+        f"{r.simulations / dt:.0f} simulations/s) -> {ok} (target: adequate in 120 s); acceptance "
+        f"{r.acceptance:.2f}, autocorrelation time {np.nanmax(r.tau):.0f} steps, burn-in {r.burn}, {ess:.0f} "
+        f"effective samples ({ess / dt:.1f}/s), chain {'adequate' if r.adequate else 'NOT adequate'}"
     )
     print(r.report())
 
@@ -376,7 +378,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--campaigns", nargs="+", default=["visible", *CAMPAIGNS])
     ap.add_argument("--tempering", nargs="+", default=["none", "sandwich"], choices=("none", "sandwich"))
-    ap.add_argument("--steps", type=int, default=DEFAULT_STEPS, help="steps per posterior (default the posterior's)")
+    ap.add_argument(
+        "--steps", type=int, help="steps per posterior (default the posterior's: until the chain is adequate)"
+    )
     ap.add_argument("--walkers", type=int, help="default the posterior's (4 n)")
     ap.add_argument("--no-diagnose", action="store_true")
     ap.add_argument(
@@ -389,7 +393,7 @@ def main() -> None:
         help="start the 'with diagnose' posterior at diagnose's recalibrated optimum, or calibrate its study afresh",
     )
     ap.add_argument("--speed", action="store_true", help="only time the 22-parameter posterior")
-    ap.add_argument("--speed-steps", type=int, default=1000)
+    ap.add_argument("--speed-steps", type=int, help="default the posterior's (until the chain is adequate)")
     ap.add_argument("--speed-walkers", type=int, help="default the posterior's (4 n)")
     ap.add_argument("--speed-space", choices=("lambdaT", "linear"), default="lambdaT")
     ap.add_argument("--workdir", help="keep the synthetic campaigns here (default: a temporary folder)")

@@ -74,8 +74,8 @@ def test_posterior_of_a_linear_gaussian_ar1_model(tau):
     sampler.run_mcmc(p0, steps)
     chain = sampler.get_chain()
     acc = float(np.mean(sampler.acceptance_fraction))
-    tau_ac, burn, thin, warnings = burn_and_thin(chain, acc)
-    assert not warnings, warnings  # long enough: > 50 autocorrelation times
+    tau_ac, burn, thin, warnings = burn_and_thin(chain, acc, sampler.get_log_prob())
+    assert not warnings, warnings  # adequate: long enough, its autocorrelation time settled
     X = model.from_unit(chain[burn::thin].reshape(-1, 2))
     # Monte-Carlo error: n_eff = walkers x (steps - burn) / tau_ac independent draws; the posterior mean's standard
     # error is sd / sqrt(n_eff), the sd's about sd / sqrt(2 n_eff). Tolerance 4 standard errors.

@@ -47,8 +47,25 @@ import pandas as pd
 
 from .identifiability import verdict
 
-DEFAULT_STEPS = 1500
 nan = float("nan")
+
+#: effective samples the default chain runs for: the Monte-Carlo sd of a 2.5 % tail probability estimated from
+#: n independent draws is sqrt(0.025 x 0.975 / n), 0.7 % at 500
+DEFAULT_EFFECTIVE_SAMPLES = 500
+#: the default chain stops here even when it is not yet adequate (it says so)
+DEFAULT_MAX_STEPS = 5000
+#: the default chain is first checked at this many steps, then every 10 % of its length, at least every ADAPTIVE_EVERY
+ADAPTIVE_FIRST_CHECK = 100
+ADAPTIVE_EVERY = 25
+#: an adequate chain is at least this many autocorrelation times long after its burn-in
+MIN_TAU_MULTIPLE = 10
+#: ... and its autocorrelation time no longer grows with the chain: the estimate over the whole chain after burn-in
+#: at most this factor times the one over its first STABLE_SHARE (an estimate that is capped by the chain's length
+#: grows in proportion to it: by 1 / STABLE_SHARE = 1.33)
+STABLE_RATIO = 1.15
+STABLE_SHARE = 0.75
+#: the ensemble's median log-probability, averaged over windows of this many steps, tells the start's transient
+BURN_WINDOW = 10
 
 
 # ============================================================================ likelihood
@@ -522,8 +539,13 @@ class PosteriorResult:
     structure : dict
         The self-checks' verdict (:func:`structure_verdict`): ``rejected``, ``reasons``, ``statement``.
     tau : ndarray
-        Integrated autocorrelation time per parameter [steps].
+        Integrated autocorrelation time per parameter over the chain after burn-in [steps].
     acceptance : float
+    effective_samples : float
+        Walkers x steps after burn-in / the largest autocorrelation time.
+    adequate : bool
+        Whether the chain is adequate (:func:`chain_diagnostics`): ``target_effective_samples`` effective samples,
+        long enough for its autocorrelation time and that time no longer growing with the chain.
     """
 
     study: object
@@ -542,7 +564,7 @@ class PosteriorResult:
     sigma: dict
     phi: dict
     sigma_kind: str
-    evaluations: int
+    evaluations: int  # walkers x steps: the chain's proposals
     seconds: float
     status: str = "complete"
     warnings: list = field(default_factory=list)
@@ -550,6 +572,10 @@ class PosteriorResult:
     tempering: dict = field(default_factory=lambda: {"kind": "none", "weight": 1.0})
     checks: pd.DataFrame = field(default_factory=pd.DataFrame)
     structure: dict = field(default_factory=lambda: {"rejected": False, "reasons": [], "statement": ""})
+    effective_samples: float = nan
+    adequate: bool = False
+    target_effective_samples: float = DEFAULT_EFFECTIVE_SAMPLES
+    simulations: int | None = None
 
     def coverage(self) -> tuple[int, int]:
         """(identified parameters whose 95 % interval holds the truth, identified parameters with a truth)."""
@@ -573,7 +599,8 @@ class PosteriorResult:
     def report(self) -> str:
         lines = [
             f"posterior ({self.status}): {self.chain.shape[1]} walkers x {self.chain.shape[0]} steps = "
-            f"{self.evaluations} simulations in {self.seconds:.1f} s; burn-in {self.burn}, thin {self.thin}, "
+            f"{self.evaluations} proposals{self._simulated()} in {self.seconds:.1f} s; burn-in {self.burn}, "
+            f"thin {self.thin}, "
             f"{len(self.samples)} samples",
             f"error model AR(1) per target + constant sensor bias integrated out, sigma {self.sigma_kind}: "
             + ", ".join(
@@ -586,7 +613,9 @@ class PosteriorResult:
                 f"{np.nanmin(self.tau):.0f}..{np.nanmax(self.tau):.0f} steps"
                 if np.isfinite(self.tau).any()
                 else "not estimated (chain too short)"
-            ),
+            )
+            + f"; {self.effective_samples:.0f} effective samples (target {self.target_effective_samples:.0f}): chain "
+            + ("adequate" if self.adequate else "NOT adequate"),
             self.tempering_line(),
         ]
         lines += [f"warning: {w}" for w in self.warnings]
@@ -611,6 +640,11 @@ class PosteriorResult:
             )
         return "\n".join(lines)
 
+    def _simulated(self) -> str:
+        if self.simulations is None:
+            return ""
+        return f" ({self.simulations} simulated; the others fell outside the prior box and cost no simulation)"
+
     def tempering_line(self) -> str:
         t = self.tempering
         if t.get("kind") != "sandwich":
@@ -625,6 +659,7 @@ class PosteriorResult:
         return {
             "status": self.status,
             "evaluations": self.evaluations,
+            "simulations": self.simulations,
             "seconds": self.seconds,
             "walkers": self.chain.shape[1],
             "steps": self.chain.shape[0],
@@ -632,6 +667,9 @@ class PosteriorResult:
             "thin": self.thin,
             "acceptance_fraction": self.acceptance,
             "tau": dict(zip(self.space.names, self.tau.tolist(), strict=True)),
+            "effective_samples": self.effective_samples,
+            "target_effective_samples": self.target_effective_samples,
+            "adequate": self.adequate,
             "sigma": self.sigma,
             "phi": self.phi,
             "sigma_kind": self.sigma_kind,
@@ -823,7 +861,7 @@ def posterior(
     targets=None,
     sigma: str = "estimated",
     walkers: int | None = None,
-    steps: int = DEFAULT_STEPS,
+    steps: int | None = None,
     seed: int = 1,
     out_dir=None,
     resume: bool = False,
@@ -834,6 +872,8 @@ def posterior(
     bias: bool = True,
     tempering: str = "sandwich",
     missing_extensions=(),
+    effective_samples: float = DEFAULT_EFFECTIVE_SAMPLES,
+    max_steps: int = DEFAULT_MAX_STEPS,
 ) -> PosteriorResult:
     """Sample the posterior of the calibration parameters.
 
@@ -848,8 +888,11 @@ def posterior(
         Error sd per target: the residual RMSE at ``x_start``, or the sensor's stated accuracy.
     walkers : int, optional
         Default 4 n (even).
-    steps : int
-        Ensemble steps (simulations = walkers x steps).
+    steps : int, optional
+        Ensemble steps (simulations = walkers x steps). Default: run until the chain is adequate
+        (:func:`chain_diagnostics`: ``effective_samples`` effective samples, at least ``MIN_TAU_MULTIPLE``
+        autocorrelation times after burn-in, the autocorrelation time no longer growing), checked every 10 % of
+        the chain (at least every 25 steps), at most ``max_steps``.
     seed : int
     out_dir : path, optional
         The checkpoint ``.<name>.posterior-checkpoint.npz`` is kept next to it.
@@ -871,6 +914,11 @@ def posterior(
         Structure extensions that ``wallcal diagnose`` adopted for this study but the sampled structure lacks;
         any makes the self-check say that the data reject the structure.
 
+    effective_samples : float
+        Effective samples an adequate chain holds.
+    max_steps : int
+        Longest default chain (when ``steps`` is not given) [steps].
+
     Returns
     -------
     PosteriorResult
@@ -891,6 +939,11 @@ def posterior(
     n = space.n
     nw = int(walkers or max(4 * n, 16))
     nw += nw % 2
+    adaptive = steps is None
+    for key, value in (("steps", steps), ("max_steps", max_steps), ("effective_samples", effective_samples)):
+        if value is not None and not value > 0:
+            raise WallcalError(f"{key}: must be positive, got {value!r}")
+    steps = int(max_steps if adaptive else steps)
     if max_evaluations:
         steps = min(steps, max(1, int(max_evaluations) // nw))
     e0 = ev.errors(x_start[None])[0]
@@ -958,14 +1011,32 @@ def posterior(
         return coords.to_unit(z.reshape(-1, n)).reshape(z.shape)
 
     prog = Progress("posterior (emcee)", enabled=progress)
+    runs0 = ev.evaluations
     t0 = time.perf_counter()
     status = "complete"
     last = time.perf_counter()
     done = 0
+    next_check = max(ADAPTIVE_FIRST_CHECK, len(prev_chain))
+    ess = ""
+    if adaptive and len(prev_chain) >= ADAPTIVE_FIRST_CHECK:
+        if chain_diagnostics(prev_chain, prev_lp, effective_samples).adequate:
+            steps = 0  # the resumed chain is adequate already
     try:
         if steps > 0:
             for _ in sampler.sample(coords.from_unit(p0), iterations=steps):
                 done += 1
+                if adaptive and len(prev_chain) + done >= next_check:
+                    d = chain_diagnostics(
+                        np.concatenate([prev_chain, unit_chain()]),
+                        np.concatenate([prev_lp, sampler.get_log_prob()]),
+                        effective_samples,
+                    )
+                    if d.adequate:
+                        break
+                    next_check = len(prev_chain) + done + max(ADAPTIVE_EVERY, int(0.1 * (len(prev_chain) + done)))
+                    ess = f", {d.effective_samples:.0f} effective samples" + (
+                        "" if d.stable else " (tau still growing)"
+                    )
                 if time.perf_counter() - last > 10.0:
                     _save(
                         ckpt,
@@ -975,8 +1046,8 @@ def posterior(
                     )
                     last = time.perf_counter()
                 prog.update(
-                    f"step {len(prev_chain) + done}/{len(prev_chain) + steps}, "
-                    f"{ev.evaluations} simulations, acceptance {np.mean(sampler.acceptance_fraction):.2f}"
+                    f"step {len(prev_chain) + done}/{'at most ' if adaptive else ''}{len(prev_chain) + steps}, "
+                    f"{ev.evaluations} simulations, acceptance {np.mean(sampler.acceptance_fraction):.2f}{ess}"
                 )
     except KeyboardInterrupt:
         status = "interrupted"
@@ -984,6 +1055,7 @@ def posterior(
     logp = np.concatenate([prev_lp, sampler.get_log_prob()]) if done else prev_lp
     _save(ckpt, chain, logp, meta)
     seconds = time.perf_counter() - t0
+    simulated = ev.evaluations - runs0
     prog.close(f"{len(chain)} steps, {ev.evaluations} simulations, {seconds:.1f} s ({status})")
     if len(chain) < 4:
         raise WallcalError("the chain is too short to summarise (interrupted at once); continue with --resume")
@@ -1004,7 +1076,9 @@ def posterior(
         seed=seed,
         tempering=temp,
         missing_extensions=missing_extensions,
+        effective_samples=effective_samples,
     )
+    res.simulations = simulated if not resume else None  # a resumed chain's earlier part is not counted
     if prepared.note:
         res.warnings.insert(0, prepared.note)
     if status == "complete" and ckpt is not None and ckpt.exists():
@@ -1024,26 +1098,132 @@ def ensemble_sampler(like, walkers: int, n: int, seed: int):
     return sampler
 
 
-def burn_and_thin(chain: np.ndarray, acceptance: float = nan) -> tuple[np.ndarray, int, int, list]:
-    """Integrated autocorrelation time per parameter [steps], burn-in and thinning of a chain (steps, walkers, n),
-    and the warnings on its length and acceptance."""
+@dataclass
+class ChainDiagnostics:
+    """What a chain (steps, walkers, n) says about itself (:func:`chain_diagnostics`).
+
+    Attributes
+    ----------
+    tau : ndarray, shape (n,)
+        Integrated autocorrelation time per parameter over the chain after burn-in [steps].
+    tau_early : float
+        The largest autocorrelation time over the first ``STABLE_SHARE`` of the chain after burn-in [steps].
+    burn : int
+        Burn-in [steps].
+    effective_samples : float
+        Walkers x steps after burn-in / the largest autocorrelation time.
+    stable : bool
+        The autocorrelation time no longer grows with the chain (``tau.max() <= STABLE_RATIO x tau_early``).
+    adequate : bool
+        At least ``target`` effective samples, ``MIN_TAU_MULTIPLE`` autocorrelation times after burn-in, stable.
+    reasons : list of str
+        Why not adequate (empty when adequate).
+    """
+
+    tau: np.ndarray
+    tau_early: float
+    burn: int
+    effective_samples: float
+    stable: bool
+    adequate: bool
+    reasons: list
+
+
+def _integrated_time(chain: np.ndarray) -> np.ndarray:
     import emcee
 
-    nsteps = chain.shape[0]
-    warnings = []
-    tau = emcee.autocorr.integrated_time(chain, quiet=True, tol=50) if nsteps > 10 else np.full(chain.shape[2], nan)
-    tau = np.asarray(tau, dtype=float)
+    if chain.shape[0] <= 10:
+        return np.full(chain.shape[2], nan)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a walker that never moved: nan for its parameters
+        return np.asarray(emcee.autocorr.integrated_time(chain, quiet=True, tol=0), dtype=float)
+
+
+def transient_end(log_prob: np.ndarray) -> int:
+    """The step at which the ensemble's median log-probability (averaged over ``BURN_WINDOW`` steps) first reaches
+    its level over the second half of the chain: from a start narrower than the posterior it falls to it, from one
+    wider or off the mode it climbs to it."""
+    m = np.median(np.asarray(log_prob, dtype=float), axis=1)
+    n = len(m) // BURN_WINDOW
+    if n < 4:
+        return 0
+    w = m[: n * BURN_WINDOW].reshape(n, BURN_WINDOW).mean(axis=1)
+    level = float(np.median(m[len(m) // 2 :]))
+    side = np.sign(w[0] - level)
+    crossed = np.flatnonzero(np.sign(w - level) != side)
+    return int(crossed[0] * BURN_WINDOW) if len(crossed) else len(m) // 2
+
+
+def chain_diagnostics(chain: np.ndarray, log_prob=None, target: float = DEFAULT_EFFECTIVE_SAMPLES) -> ChainDiagnostics:
+    """Burn-in, autocorrelation time and effective samples of a chain (steps, walkers, n), and whether it is adequate.
+
+    Burn-in: the end of the start's transient in the log-probability (:func:`transient_end`), and at least one
+    autocorrelation time, at most half the chain; without ``log_prob``, two autocorrelation times. The
+    autocorrelation time is estimated on the chain after burn-in (emcee's windowed estimator, averaged over the
+    walkers). A chain too short for it gives an estimate capped by its length, which grows in proportion to the
+    chain: so an adequate chain also has an estimate that no longer grows (over the whole chain after burn-in at
+    most ``STABLE_RATIO`` x the one over its first ``STABLE_SHARE``), is at least ``MIN_TAU_MULTIPLE``
+    autocorrelation times long after burn-in, and holds ``target`` effective samples.
+    """
+    nsteps, walkers = chain.shape[:2]
+    tau_all = _integrated_time(chain)
+    t_all = float(np.nanmax(tau_all)) if np.isfinite(tau_all).any() else float(nsteps)
+    if log_prob is not None and len(log_prob) == nsteps:
+        burn = max(transient_end(log_prob), 1)
+        tau = _integrated_time(chain[burn:])
+        t = float(np.nanmax(tau)) if np.isfinite(tau).any() else t_all
+        burn = max(burn, int(np.ceil(t)))
+    else:
+        burn = int(np.ceil(2 * t_all))
+    burn = int(min(burn, nsteps // 2))
+    post = chain[burn:]
+    tau = _integrated_time(post)
     tmax = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
-    if nsteps < 50 * tmax:
+    early = _integrated_time(post[: int(STABLE_SHARE * len(post))])
+    tau_early = float(np.nanmax(early)) if np.isfinite(early).any() else nan
+    ess = walkers * len(post) / tmax if tmax > 0 else 0.0
+    stable = bool(np.isfinite(tau_early) and tmax <= STABLE_RATIO * tau_early)
+    reasons = []
+    if ess < target:
+        reasons.append(f"{ess:.0f} effective samples < {target:.0f}")
+    if len(post) < MIN_TAU_MULTIPLE * tmax:
+        reasons.append(
+            f"{len(post)} steps after burn-in < {MIN_TAU_MULTIPLE} x the largest autocorrelation time "
+            f"({tmax:.0f} steps)"
+        )
+    if not stable:
+        reasons.append(
+            f"the autocorrelation time still grows with the chain ({tau_early:.0f} steps over the first "
+            f"{STABLE_SHARE:.0%} after burn-in, {tmax:.0f} over all): it and the effective samples are lower bounds"
+        )
+    return ChainDiagnostics(
+        tau=tau,
+        tau_early=tau_early,
+        burn=burn,
+        effective_samples=float(ess),
+        stable=stable,
+        adequate=not reasons,
+        reasons=reasons,
+    )
+
+
+def burn_and_thin(
+    chain: np.ndarray, acceptance: float = nan, log_prob=None, target: float = DEFAULT_EFFECTIVE_SAMPLES
+) -> tuple[np.ndarray, int, int, list]:
+    """Integrated autocorrelation time per parameter [steps], burn-in and thinning of a chain (steps, walkers, n),
+    and the warnings on its adequacy (:func:`chain_diagnostics`) and acceptance."""
+    return _burn_and_thin(chain_diagnostics(chain, log_prob, target), acceptance)
+
+
+def _burn_and_thin(d: ChainDiagnostics, acceptance: float) -> tuple[np.ndarray, int, int, list]:
+    warnings = []
+    if not d.adequate:
         warnings.append(
-            f"chain too short for reliable intervals: {nsteps} steps < 50 x the largest integrated "
-            f"autocorrelation time ({tmax:.0f} steps); run longer (--steps) or --resume"
+            "chain not adequate for reliable intervals: " + "; ".join(d.reasons) + "; run longer (--steps) or --resume"
         )
     if np.isfinite(acceptance) and not 0.1 <= acceptance <= 0.7:
         warnings.append(f"acceptance fraction {acceptance:.2f} is outside 0.1..0.7")
-    burn = int(min(max(2 * tmax, nsteps // 3), nsteps // 2))
-    thin = max(1, int(0.5 * np.nanmin(tau))) if np.isfinite(tau).any() else 1
-    return tau, burn, thin, warnings
+    thin = max(1, int(0.5 * np.nanmin(d.tau))) if np.isfinite(d.tau).any() else 1
+    return d.tau, d.burn, thin, warnings
 
 
 def summarise(
@@ -1063,10 +1243,12 @@ def summarise(
     seed=1,
     tempering=None,
     missing_extensions=(),
+    effective_samples: float = DEFAULT_EFFECTIVE_SAMPLES,
 ) -> PosteriorResult:
     """Burn-in, thinning, diagnostics, per-parameter and derived summaries, non-uniqueness demonstration,
     posterior predictive checks and the structure verdict."""
-    tau, burn, thin, warnings = burn_and_thin(chain, acceptance)
+    diag = chain_diagnostics(chain, logp, effective_samples)
+    tau, burn, thin, warnings = _burn_and_thin(diag, acceptance)
     flat_u = chain[burn::thin].reshape(-1, chain.shape[2])
     X = space.from_unit(flat_u)
     rng = np.random.default_rng(seed)
@@ -1150,6 +1332,9 @@ def summarise(
         tempering=tempering or {"kind": "none", "weight": 1.0},
         checks=checks,
         structure=structure,
+        effective_samples=diag.effective_samples,
+        adequate=diag.adequate,
+        target_effective_samples=float(effective_samples),
     )
 
 

@@ -144,8 +144,15 @@ def register(sub) -> None:
         help="a `wallcal diagnose` output: its adopted extensions that this study lacks make the self-check say "
         "that the data reject the structure",
     )
-    p.add_argument("--walkers", type=int)
-    p.add_argument("--steps", type=int, default=1500)
+    p.add_argument("--walkers", type=int, help="default 4 x the parameters")
+    p.add_argument(
+        "--steps",
+        type=int,
+        help="chain length (default: until the chain is adequate: --effective-samples, its autocorrelation time "
+        "no longer growing, at most --max-steps)",
+    )
+    p.add_argument("--effective-samples", type=float, default=500, metavar="N", help="default 500")
+    p.add_argument("--max-steps", type=int, default=5000, metavar="N", help="longest default chain (default 5000)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--resume", action="store_true")
     p.add_argument("--out", metavar="DIR", help="default: posterior/ next to the study")
@@ -325,6 +332,8 @@ def run_posterior(args) -> int:
         sigma=args.sigma,
         walkers=args.walkers,
         steps=args.steps,
+        effective_samples=args.effective_samples,
+        max_steps=args.max_steps,
         seed=args.seed,
         out_dir=out,
         resume=args.resume,
