@@ -61,9 +61,9 @@ ADAPTIVE_EVERY = 25
 MIN_TAU_MULTIPLE = 10
 #: ... and its autocorrelation time no longer grows with the chain: the estimate over the whole chain after burn-in
 #: at most this factor times the one over its first STABLE_SHARE (an estimate that is capped by the chain's length
-#: grows in proportion to it: by 1 / STABLE_SHARE = 1.33)
-STABLE_RATIO = 1.15
-STABLE_SHARE = 0.75
+#: grows in proportion to it: by 1 / STABLE_SHARE = 2)
+STABLE_RATIO = 1.2
+STABLE_SHARE = 0.5
 #: the ensemble's median log-probability, averaged over windows of this many steps, tells the start's transient
 BURN_WINDOW = 10
 
