@@ -28,11 +28,11 @@ outputs are smooth functions of the properties.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .errors import StudyError
 from .wall import Wall
@@ -85,17 +85,6 @@ class Grid:
     @property
     def n_links(self) -> int:
         return len(self.link_layer)
-
-    @functools.cached_property
-    def link_kinds(self) -> tuple[np.ndarray, ...]:
-        """Indices that :func:`assemble` uses, computed once per grid: the massive links, their layers,
-        intervals and first nodes; the contact links and the layers whose contact resistance they carry;
-        the no-mass links and their layers."""
-        ll, n = self.link_layer, self.link_intervals
-        massive = np.nonzero((ll >= 0) & (n > 0.0))[0]
-        contact = np.nonzero(ll < 0)[0]
-        nomass = np.nonzero((ll >= 0) & (n == 0.0))[0]
-        return massive, ll[massive], n[massive], contact, self.link_contact_of[contact], nomass, ll[nomass]
 
 
 def intervals_for_layer(
@@ -228,6 +217,18 @@ class PropertyArrays:
         """The candidates at ``index`` (an integer array or a boolean mask)."""
         return PropertyArrays(**{f.name: getattr(self, f.name)[index] for f in dataclasses.fields(self)})
 
+    def line_arrays(self) -> tuple[np.ndarray, ...]:
+        """The arrays :func:`assemble_lines` takes: thickness, conductivity, volumetric heat capacity, contact
+        and thermal resistance, temperature coefficient."""
+        return (
+            self.thickness,
+            self.conductivity,
+            self.volumetric_heat_capacity,
+            self.contact_resistance,
+            self.thermal_resistance,
+            self.temperature_coefficient,
+        )
+
     @classmethod
     def from_walls(cls, walls: list[Wall]) -> PropertyArrays:
         """Stack the layer properties of walls with the same layer structure."""
@@ -251,7 +252,7 @@ MIN_CONTACT_RESISTANCE = 1e-7
 
 
 def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]:
-    """Node capacities and link conductances for every candidate.
+    """Node capacities and link conductances for every candidate (:func:`assemble_lines` on the grid's links).
 
     Returns
     -------
@@ -261,22 +262,69 @@ def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]
         Link conductances at the reference temperature [W/(m2K)] (lambda(T) layers
         are re-evaluated in the kernel).
     """
-    massive, lm, n, contact, contact_of, nomass, nomass_layer = grid.link_kinds
-    nc = props.n_candidates
-    g = np.empty((nc, grid.n_links))
-    cap = np.zeros((nc, grid.n_nodes))
-    if len(contact) or len(nomass):
-        with np.errstate(divide="ignore"):
-            g[:, contact] = 1.0 / np.maximum(
-                np.asarray(props.contact_resistance, float)[:, contact_of], MIN_CONTACT_RESISTANCE
-            )
-            g[:, nomass] = 1.0 / np.asarray(props.thermal_resistance, float)[:, nomass_layer]
-    dx = np.asarray(props.thickness, float)[:, lm] / n
-    g[:, massive] = np.asarray(props.conductivity, float)[:, lm] / dx
-    half = 0.5 * np.asarray(props.volumetric_heat_capacity, float)[:, lm] * dx
-    cap[:, massive] += half  # each end node gets half the interval's capacity (indices unique per line)
-    cap[:, massive + 1] += half
+    no_law = np.full(grid.n_links, -1, dtype=np.int64)
+    cap, g, _, _ = assemble_lines(
+        *(np.asarray(a, dtype=float) for a in props.line_arrays()),
+        grid.link_layer,
+        grid.link_contact_of,
+        grid.link_intervals,
+        no_law,
+    )
     return cap, g
+
+
+@njit(cache=True, error_model="numpy")
+def assemble_lines(
+    thickness,
+    conductivity,
+    heat_capacity,
+    contact_resistance,
+    thermal_resistance,
+    temperature_coefficient,
+    link_layer,
+    contact_of,
+    intervals,
+    law_layer,
+):
+    """Node capacities (c, j) [J/(m2K)], link conductances (c, l) [W/(m2K)] and temperature coefficients
+    (c, l) [1/K] of candidate walls from their layer properties (c, n_layers), as :class:`PropertyArrays`
+    gives them (:meth:`PropertyArrays.line_arrays`), on a grid's links (:attr:`Grid.link_layer`,
+    :attr:`Grid.link_contact_of`, :attr:`Grid.link_intervals`), and whether they make a valid wall: every
+    conductance finite and positive, every capacity finite and non-negative. A link's temperature
+    coefficient is that of layer ``law_layer[l]`` (0 where it is -1: the links whose conductivity law
+    does not take one).
+
+    A massive layer's interval of ``dx = d / n`` conducts ``lambda / dx`` and gives each end node half its
+    capacity ``rho c dx / 2``; a no-mass layer conducts ``1 / R`` (inf at R = 0); a contact link
+    ``1 / max(R_contact, MIN_CONTACT_RESISTANCE)``. One call per batch: the per-call cost of many array
+    operations on arrays of a few dozen links is what this saves.
+    """
+    nc = thickness.shape[0]
+    nl = link_layer.shape[0]
+    cap = np.zeros((nc, nl + 1))
+    g = np.empty((nc, nl))
+    coef = np.zeros((nc, nl))
+    valid = True
+    for c in range(nc):
+        for lnk in range(nl):
+            if law_layer[lnk] >= 0:
+                coef[c, lnk] = temperature_coefficient[c, law_layer[lnk]]
+            li = link_layer[lnk]
+            if li < 0:
+                r = contact_resistance[c, contact_of[lnk]]
+                g[c, lnk] = 1.0 / (r if not r < MIN_CONTACT_RESISTANCE else MIN_CONTACT_RESISTANCE)
+            elif intervals[lnk] == 0.0:
+                g[c, lnk] = 1.0 / thermal_resistance[c, li]
+            else:
+                dx = thickness[c, li] / intervals[lnk]
+                g[c, lnk] = conductivity[c, li] / dx
+                half = 0.5 * heat_capacity[c, li] * dx
+                cap[c, lnk] += half
+                cap[c, lnk + 1] += half
+            valid &= np.isfinite(g[c, lnk]) and g[c, lnk] > 0.0
+        for j in range(nl + 1):
+            valid &= np.isfinite(cap[c, j]) and cap[c, j] >= 0.0
+    return cap, g, coef, valid
 
 
 def node_tolerance(thickness: float) -> float:

@@ -63,7 +63,7 @@ from ..grid import (
     LAMBDA_TABLE,
     Grid,
     PropertyArrays,
-    assemble,
+    assemble_lines,
     build_grid,
     probe_weights,
 )
@@ -112,12 +112,13 @@ _POOL: ThreadPoolExecutor | None = None
 def in_threads(part, n: int):
     """Run ``part(slice)`` over ``n`` candidates split into contiguous chunks, one per thread (the
     kernels release the GIL), and concatenate the results along the first axis. Threads: numba's
-    ``NUMBA_NUM_THREADS`` (the number of cores unless set). One candidate runs on the calling thread.
+    ``NUMBA_NUM_THREADS`` (the number of cores unless set). A single chunk (one candidate, or one
+    thread) runs on the calling thread as ``part(None)``: all candidates, nothing to slice.
     """
     global _POOL
     n_threads = min(n, max(1, int(numba.config.NUMBA_NUM_THREADS)))
     if n_threads <= 1:
-        return part(slice(0, n))
+        return part(None)
     if _POOL is None or _POOL._max_workers < n_threads:
         _POOL = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="wallcal-fd")
     bounds = np.linspace(0, n, n_threads + 1).round().astype(int)
@@ -136,6 +137,9 @@ class PreparedFD:
         if inp.scheme not in SCHEME_THETA:
             raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
         self.theta = SCHEME_THETA[inp.scheme]
+        # the theta rule's limit L (operator.link_thetas): 1 / (1 - theta) unless given
+        self.theta_limit = self.stiff_limit if self.stiff_limit is not None else 1.0 / max(1.0 - self.theta, 1e-300)
+        self._per_size: dict[int, dict[str, np.ndarray]] = {}
         self.dt = float(inp.time_step)
         (code_e, h_e), (code_i, h_i) = (
             boundary.face_parameters(face.type, face.surface_coefficient) for face in (inp.exterior, inp.interior)
@@ -164,6 +168,7 @@ class PreparedFD:
         planes = [depth_plane(grid.x, float(depth)) for _, depth in inp.flux_depths]
         self.depth_face = np.array([f for f, _, _ in planes], dtype=np.int64)
         self.depth_inner = np.flatnonzero(self.depth_face < 0)  # the planes inside the wall
+        self.face_planes = [(d, int(f)) for d, f in enumerate(self.depth_face) if f >= 0]  # (plane, face)
         self.depth_link = np.array([planes[d][1] for d in self.depth_inner], dtype=np.int64)
         self.depth_node = np.array([planes[d][2] for d in self.depth_inner], dtype=np.int64)
         # conductivity laws per link (constant over candidates except through g_ref); layers whose
@@ -210,29 +215,33 @@ class PreparedFD:
         self.tab_T = np.array(tabs_T if tabs_T else [0.0])
         self.tab_v = np.array(tabs_v if tabs_v else [1.0])
         self.nonlinear = bool((kind != LAMBDA_CONSTANT).any())
-        self.exponential_links = np.flatnonzero(kind == LAMBDA_EXPONENTIAL)
-        self.exponential_link_layers = grid.link_layer[self.exponential_links]
+        # what grid.assemble_lines reads of the grid; the temperature coefficient f on the exponential links only
+        law_layer = np.where(kind == LAMBDA_EXPONENTIAL, grid.link_layer, -1)
+        self.links = (grid.link_layer, grid.link_contact_of, grid.link_intervals, law_layer)
 
-    def _link_coefficients(self, props: PropertyArrays) -> np.ndarray:
-        """Per-candidate temperature coefficients f of exponential links."""
-        nc = props.n_candidates
-        coef = np.zeros((nc, self.grid.n_links))
-        if len(self.exponential_links):
-            coef[:, self.exponential_links] = props.temperature_coefficient[:, self.exponential_link_layers]
-        return coef
+    def _sized(self, nc: int) -> dict[str, np.ndarray]:
+        """Arrays that depend on the batch size only, formed once per size (the kernels only read them):
+        the faces' surface coefficients ``face_h`` (nc, 2) [W/(m2K)], the empty initial state ``no_state``
+        (nc, 0), and the plane capacities ``no_planes`` (nc, 0) of a study without inner depth planes."""
+        sized = self._per_size.get(nc)
+        if sized is None:
+            sized = {
+                "face_h": np.repeat(self.bc_h[None, :], nc, axis=0),
+                "no_state": np.zeros((nc, 0)),
+                "no_planes": np.zeros((nc, 0)),
+            }
+            self._per_size[nc] = sized
+        return sized
 
     def _face_h(self, nc: int) -> np.ndarray:
-        """The faces' surface coefficients [W/(m2K)] for each of nc candidates, shape (nc, 2) (one array
-        per batch size)."""
-        cache = self.__dict__.setdefault("_face_h_rows", {})
-        if nc not in cache:
-            cache[nc] = np.repeat(self.bc_h[None, :], nc, axis=0)
-        return cache[nc]
+        """The faces' surface coefficients [W/(m2K)] for each of nc candidates, shape (nc, 2)."""
+        return self._sized(nc)["face_h"]
 
     def _thetas(self, cap: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """theta per link and per boundary term, and the number of links made implicit."""
-        limit = self.stiff_limit if self.stiff_limit is not None else 1.0 / max(1.0 - self.theta, 1e-300)
-        return operator.link_thetas(cap, g, self.bc_type, self._face_h(cap.shape[0]), self.theta, self.dt, limit)
+        return operator.link_thetas(
+            cap, g, self.bc_type, self._face_h(cap.shape[0]), self.theta, self.dt, self.theta_limit
+        )
 
     # ------------------------------------------------------------------ running
     def _probe_weights(self, probe_depths: np.ndarray | None, nc: int) -> tuple[np.ndarray, ...]:
@@ -291,8 +300,8 @@ class PreparedFD:
             targets.
         """
         nc = props.n_candidates
-        cap, g = assemble(self.grid, props)
-        if not (np.isfinite(cap).all() and np.isfinite(g).all()) or (g <= 0).any() or (cap < 0).any():
+        cap, g, coef, valid = assemble_lines(*props.line_arrays(), *self.links)
+        if not valid:
             raise EngineError("candidate wall with non-positive or non-finite properties")
         theta, bc_theta, n_forced = self._thetas(cap, g)
         pa, pb, pw = self._probe_weights(probe_depths, nc)
@@ -302,11 +311,10 @@ class PreparedFD:
         if path in ("auto", "modal") and self.modal_possible:
             res = self._run_modal(cap, g, theta, bc_theta, pa, pb, pw, cplus, initial_state, n_forced, rows)
         else:
-            res = self._run_general(props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state)
+            res = self._run_general(cap, g, coef, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state)
         npr = len(self.probe_names)
-        for d, face in enumerate(self.depth_face):  # a plane on a face: the face flux
-            if face >= 0:
-                res.out[:, npr + 2 + d] = res.out[:, npr + face]
+        for d, face in self.face_planes:  # a plane on a face: the face flux
+            res.out[:, npr + 2 + d] = res.out[:, npr + face]
         return res
 
     def _plane_capacities(self, props: PropertyArrays) -> np.ndarray:
@@ -314,37 +322,36 @@ class PreparedFD:
         the interior side of the plane: half the capacity of the interval that starts there (0 for a
         no-mass or contact link, and for a plane between two nodes), shape (n_candidates, n_inner)."""
         grid = self.grid
-        out = np.zeros((props.n_candidates, len(self.depth_link)))
         if not len(self.depth_link):
-            return out
+            return self._sized(props.n_candidates)["no_planes"]
+        out = np.zeros((props.n_candidates, len(self.depth_link)))
         for k, (lnk, node) in enumerate(zip(self.depth_link, self.depth_node, strict=True)):
             li, n = grid.link_layer[lnk], grid.link_intervals[lnk]
             if node >= 0 and li >= 0 and n > 0:
                 out[:, k] = 0.5 * props.volumetric_heat_capacity[:, li] * props.thickness[:, li] / n
         return out
 
-    def _run_general(self, props, cap, g, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state) -> BatchResult:
-        nc = props.n_candidates
-        coef = self._link_coefficients(props)
-        tinit = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        bc_h = self._face_h(nc)
-        wall = (cap, g, theta)
-        laws = (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v)
-        faces = (self.bc_type, bc_h, bc_theta, self.ue, self.ui)
-        outputs = (self.out_step, self.out_w, pa, pb, pw, self.depth_link, self.depth_node, cplus / self.dt)
+    def _run_general(self, cap, g, coef, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state) -> BatchResult:
+        sized = self._sized(cap.shape[0])
+        tinit = sized["no_state"] if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
+        cp = cplus / self.dt if cplus.size else cplus
+        per_candidate = (cap, g, theta, coef, sized["face_h"], bc_theta, pa, pb, pw, cp, tinit)
 
         def part(sl):
+            cap, g, theta, coef, bc_h, bc_theta, pa, pb, pw, cp, t0 = (
+                per_candidate if sl is None else (a[sl] for a in per_candidate)
+            )
             return kernels.run_batch(
-                tuple(a[sl] for a in wall),
-                laws[:1] + (coef[sl],) + laws[2:],
-                faces[:1] + (bc_h[sl], bc_theta[sl]) + faces[3:],
-                outputs[:2] + tuple(a[sl] for a in outputs[2:5]) + outputs[5:7] + (outputs[7][sl],),
+                (cap, g, theta),
+                (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v),
+                (self.bc_type, bc_h, bc_theta, self.ue, self.ui),
+                (self.out_step, self.out_w, pa, pb, pw, self.depth_link, self.depth_node, cp),
                 self.dt,
                 self.refactor_drift,
-                tinit[sl],
+                t0,
             )
 
-        out, energy, tend = in_threads(part, nc)
+        out, energy, tend = in_threads(part, cap.shape[0])
         out = self._with_depth_rows(out)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
@@ -353,7 +360,7 @@ class PreparedFD:
         the face rows of ``out``) for the planes inside the wall, NaN for the faces' (filled by the caller)."""
         npr = len(self.probe_names)
         if not len(self.depth_face):
-            return out[:, : npr + 2]
+            return out if out.shape[1] == npr + 2 else out[:, : npr + 2]
         if inner is None:
             inner = out[:, npr + 2 :]
         full = np.full((out.shape[0], npr + 2 + len(self.depth_face), out.shape[2]), np.nan)
@@ -382,29 +389,49 @@ class PreparedFD:
         rows per plane, one over the new and one over the old level (:func:`wallcal.engines.modal.output_plan`);
         their sum, plus what a known face node on the link adds through its input, is the flux."""
         nc, n_nodes = cap.shape
-        npr, n_d, n_in = pa.shape[1], len(self.depth_face), len(self.depth_link)
-        want = np.ones(npr + 2 + n_d, dtype=np.bool_) if rows is None else np.asarray(rows, dtype=np.bool_)
+        npr, n_d = pa.shape[1], len(self.depth_face)
+        sized = self._sized(nc)
+        if rows is None:
+            want = sized.get("all_rows")
+            if want is None:
+                want = sized["all_rows"] = np.ones(npr + 2 + n_d, dtype=np.bool_)
+        else:
+            want = np.asarray(rows, dtype=np.bool_)
         if n_d:
             want_k, dws = self._modal_depth_rows(theta, g, cplus, want)
         else:
-            want_k, dws = want[: npr + 2], np.zeros((nc, 0, 4))
-        t0 = np.zeros((nc, 0)) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
-        th_in = modal.input_thetas(theta, bc_theta, self.bc_type)
-        keys = [(float(a), float(b)) for a, b in th_in]
-        out = np.empty((nc, npr + 2 + 2 * n_in, len(self.out_step)))
-        tend = np.empty((nc, n_nodes))
-        for key in dict.fromkeys(keys):
-            idx = np.flatnonzero([k == key for k in keys])
+            want_k, dws = want[: npr + 2], sized.get("no_depth_weights")
+            if dws is None:
+                dws = sized["no_depth_weights"] = np.zeros((nc, 0, 4))
+        t0 = sized["no_state"] if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
+        per_candidate = (cap, g, theta, bc_theta, pa, pb, pw, dws, t0)
+        keys = [(a, b) for a, b in modal.input_thetas(theta, bc_theta, self.bc_type).tolist()]
+        groups = dict.fromkeys(keys)
+
+        def run(key, idx):
+            """The candidates ``idx`` (None: all) with the plan of input thetas ``key``."""
             plan = self._output_plan(key)
 
-            def part(sl, idx=idx, plan=plan):
-                i = idx[sl]
+            def part(sl):
+                i = idx if sl is None else (sl if idx is None else idx[sl])
+                cap, g, theta, bc_theta, pa, pb, pw, dws, t0 = (
+                    per_candidate if i is None else (a[i] for a in per_candidate)
+                )
                 return modal.modal_batch(
-                    cap[i], g[i], theta[i], bc_theta[i], pa[i], pb[i], pw[i], self.depth_link, dws[i], self.bc_type,
-                    self.bc_h, self.theta, self.dt, self.ue, self.ui, plan, want_k, t0[i],
+                    cap, g, theta, bc_theta, pa, pb, pw, self.depth_link, dws, self.bc_type, self.bc_h, self.theta,
+                    self.dt, self.ue, self.ui, plan, want_k, t0,
                 )  # fmt: skip
 
-            out[idx], tend[idx] = in_threads(part, len(idx))
+            return in_threads(part, nc if idx is None else len(idx))
+
+        if len(groups) == 1:
+            out, tend = run(keys[0], None)
+        else:
+            out = np.empty((nc, npr + 2 + 2 * len(self.depth_link), len(self.out_step)))
+            tend = np.empty((nc, n_nodes))
+            for key in groups:
+                idx = np.flatnonzero([k == key for k in keys])
+                out[idx], tend[idx] = run(key, idx)
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         if n_d:

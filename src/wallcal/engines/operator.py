@@ -55,37 +55,33 @@ def assemble_operator(g, w, bc_type, bc_h, w_bc, j0, m, diag, off):
     return pe, pi
 
 
-def node_stiffness(cap, g, bc_type, bc_h, dt, h_face=None):
-    """``s_j = dt (sum of the conductances at node j) / c_j`` (face terms included), shape (c, j): inf
-    for a node without capacity, 0 for a known face node. (numpy: it runs once per batch.)"""
-    total = np.zeros(cap.shape)
-    total[:, :-1] += g
-    total[:, 1:] += g
-    if h_face is None:
-        h_face = _face_conductances(bc_type, bc_h)
-    total[:, 0] += h_face[0]
-    total[:, -1] += h_face[1]
-    s = np.divide(total * dt, cap, out=np.full(cap.shape, np.inf), where=cap > 0.0)
-    for f, j in ((0, 0), (1, -1)):
-        if boundary.is_known(bc_type[f]):
-            s[:, j] = 0.0
+@njit(cache=True)
+def node_stiffness(cap, g, bc_type, bc_h, dt):
+    """``s_j = dt (sum of the conductances at node j) / c_j`` (face terms included,
+    :func:`wallcal.engines.boundary.face_conductance`), shape (c, j): inf for a node without capacity, 0 for
+    a known face node. ``bc_h`` (c, 2): the faces' surface coefficients of each candidate."""
+    nc, n = cap.shape
+    s = np.empty((nc, n))
+    for c in range(nc):
+        for j in range(n):
+            total = 0.0
+            if j < n - 1:
+                total += g[c, j]
+            if j > 0:
+                total += g[c, j - 1]
+            if j == 0:
+                total += boundary.face_conductance(bc_type[0], bc_h[c, 0])
+            if j == n - 1:
+                total += boundary.face_conductance(bc_type[1], bc_h[c, 1])
+            s[c, j] = total * dt / cap[c, j] if cap[c, j] > 0.0 else np.inf
+        if boundary.is_known(bc_type[0]):
+            s[c, 0] = 0.0
+        if boundary.is_known(bc_type[1]):
+            s[c, n - 1] = 0.0
     return s
 
 
-def _face_conductances(bc_type, bc_h):
-    """Per face, the face conductance of every candidate (:func:`boundary.face_conductance`)."""
-    return [np.array([boundary.face_conductance(bc_type[f], h) for h in bc_h[:, f]]) for f in (0, 1)]
-
-
-def _raised_theta(theta0, budget, s):
-    """theta of a term whose stiffest node has stiffness s (array): (1 - theta) s <= budget."""
-    raise_ = np.isfinite(s) & (s * (1.0 - theta0) > budget)
-    th = np.full(s.shape, float(theta0))
-    th[raise_] = 1.0 - budget / s[raise_]
-    th[~np.isfinite(s)] = 1.0  # a node without capacity
-    return th
-
-
+@njit(cache=True)
 def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     """theta per link (c, l) and per face term (c, 2), and the number of terms whose theta was raised (c,).
 
@@ -101,26 +97,38 @@ def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     capacity: 1). With ``L = 1 / (1 - theta0)`` (2 for Crank-Nicolson, the default) this is exactly
     the condition, met with equality at the stiff nodes; terms between nodes with ``s <= L`` keep
     theta0. ``L = inf`` keeps theta0 except at nodes without capacity (theta 1).
+    (numba: it runs on every call of the engine; ``bc_h`` (c, 2) as in :func:`node_stiffness`.)
     """
-    cap = np.asarray(cap, dtype=float)
-    g = np.asarray(g, dtype=float)
-    nc = cap.shape[0]
-    theta = np.full(g.shape, float(theta0))
-    bc_theta = np.full((nc, 2), float(theta0))
+    t0 = float(theta0)
+    nc, nl = g.shape
+    theta = np.full((nc, nl), t0)
+    bc_theta = np.full((nc, 2), t0)
     n_raised = np.zeros(nc, dtype=np.int64)
-    if theta0 >= 1.0:
+    if t0 >= 1.0:
         return theta, bc_theta, n_raised
-    bc_h = np.asarray(bc_h, dtype=float)
-    h_face = _face_conductances(bc_type, bc_h)
-    s = node_stiffness(cap, g, bc_type, bc_h, dt, h_face)
-    budget = (1.0 - theta0) * stiff_limit
-    if np.isfinite(s).all() and (s * (1.0 - theta0) <= budget).all():  # no node too stiff: theta0 everywhere
-        return theta, bc_theta, n_raised
-    theta = _raised_theta(theta0, budget, np.maximum(s[:, :-1], s[:, 1:]))
-    n_raised += (theta > theta0).sum(axis=1)
-    for f, j in ((0, 0), (1, -1)):  # a face term enters B through h; a face node without capacity is algebraic
-        applies = (h_face[f] > 0.0) | ~np.isfinite(s[:, j])
-        th = np.where(applies, _raised_theta(theta0, budget, s[:, j]), theta0)
-        bc_theta[:, f] = th
-        n_raised += th > theta0
-    return np.ascontiguousarray(theta), bc_theta, n_raised
+    s = node_stiffness(cap, g, bc_type, bc_h, dt)
+    budget = (1.0 - t0) * stiff_limit
+    for c in range(nc):
+        for lnk in range(nl):
+            th = _raised_theta(t0, budget, max(s[c, lnk], s[c, lnk + 1]))
+            theta[c, lnk] = th
+            if th > t0:
+                n_raised[c] += 1
+        for f in range(2):  # a face term enters B through h; a face node without capacity is algebraic
+            sf = s[c, 0 if f == 0 else nl]
+            if boundary.face_conductance(bc_type[f], bc_h[c, f]) > 0.0 or not np.isfinite(sf):
+                th = _raised_theta(t0, budget, sf)
+                bc_theta[c, f] = th
+                if th > t0:
+                    n_raised[c] += 1
+    return theta, bc_theta, n_raised
+
+
+@njit(cache=True)
+def _raised_theta(theta0, budget, s):
+    """theta of a term whose stiffest node has stiffness s: (1 - theta) s <= budget."""
+    if not np.isfinite(s):
+        return 1.0  # a node without capacity
+    if s * (1.0 - theta0) > budget:
+        return 1.0 - budget / s
+    return theta0
