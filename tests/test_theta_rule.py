@@ -1,4 +1,4 @@
-"""The theta rule (wallcal.engines.operator: node stiffness, theta per term) against hand computations.
+"""The theta rule (wallcal.engines.operator.link_thetas: node stiffness, theta per term) against hand computations.
 
 A wall of four nodes and three links, each number chosen so that one rule decides it:
 
@@ -24,21 +24,27 @@ SURF, AIR, FLUX = boundary.SURFACE_TEMPERATURE, boundary.AIR_TEMPERATURE, bounda
 
 
 def test_node_stiffness_by_hand():
+    """The stiffness of each node, seen through the thetas of a limit so small that every term with a
+    stiff node is raised: ``theta = 1 - (1 - theta0) L / max(s_a, s_b)``, i.e. ``max(s_a, s_b) = 0.5 L /
+    (1 - theta)``."""
     bc_type = np.array([SURF, AIR])
     bc_h = np.array([[0.0, 0.8]])  # an interior air face with h = 0.8 W/(m2K) (below 1)
-    s = operator.node_stiffness(CAP, G, bc_type, bc_h, DT)  # face conductances formed inside
-    expected = [
+    s = [
         0.0,  # a known face node has no stiffness
         60 * (10 + 40) / 0.5,  # 6000: the foil
         60 * (40 + 5) / 2000,  # 1.35
         60 * (5 + 0.8) / 800,  # 0.435: the air face's h counts at its node
     ]
-    np.testing.assert_allclose(s[0], expected, rtol=1e-15)
-    # a node without capacity is infinitely stiff
+    limit = 1e-6
+    theta, bc_theta, n_raised = operator.link_thetas(CAP, G, bc_type, bc_h, 0.5, DT, limit)
+    seen = 0.5 * limit / (1.0 - np.concatenate([theta[0], bc_theta[0, 1:]]))
+    np.testing.assert_allclose(seen, [max(s[0], s[1]), max(s[1], s[2]), max(s[2], s[3]), s[3]], rtol=1e-6)
+    assert bc_theta[0, 0] == 0.5 and n_raised[0] == 4  # the known face has no term
+    # a node without capacity is infinitely stiff: its links take theta 1
     cap = CAP.copy()
     cap[0, 2] = 0.0
-    s = operator.node_stiffness(cap, G, bc_type, bc_h, DT)
-    assert s[0, 2] == np.inf and s[0, 1] == pytest.approx(6000.0)
+    theta, _, _ = operator.link_thetas(cap, G, bc_type, bc_h, 0.5, DT, 2.0)
+    assert theta[0, 1] == 1.0 and theta[0, 2] == 1.0 and theta[0, 0] == pytest.approx(1 - 1 / 6000)
 
 
 def test_link_thetas_by_hand():

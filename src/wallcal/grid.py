@@ -297,18 +297,20 @@ def assemble_lines(
     A massive layer's interval of ``dx = d / n`` conducts ``lambda / dx`` and gives each end node half its
     capacity ``rho c dx / 2``; a no-mass layer conducts ``1 / R`` (inf at R = 0); a contact link
     ``1 / max(R_contact, MIN_CONTACT_RESISTANCE)``. One call per batch: the per-call cost of many array
-    operations on arrays of a few dozen links is what this saves.
+    operations on arrays of a few dozen links is what this saves. (Arrays by ``np.empty`` in the shapes the
+    modal kernel allocates too, and no other numpy call: each compiles numpy's code on a fresh install.)
     """
     nc = thickness.shape[0]
     nl = link_layer.shape[0]
-    cap = np.zeros((nc, nl + 1))
+    cap = np.empty((nc, nl + 1))
     g = np.empty((nc, nl))
-    coef = np.zeros((nc, nl))
+    coef = np.empty((nc, nl))
     valid = True
     for c in range(nc):
+        for j in range(nl + 1):
+            cap[c, j] = 0.0
         for lnk in range(nl):
-            if law_layer[lnk] >= 0:
-                coef[c, lnk] = temperature_coefficient[c, law_layer[lnk]]
+            coef[c, lnk] = temperature_coefficient[c, law_layer[lnk]] if law_layer[lnk] >= 0 else 0.0
             li = link_layer[lnk]
             if li < 0:
                 r = contact_resistance[c, contact_of[lnk]]
@@ -321,9 +323,9 @@ def assemble_lines(
                 half = 0.5 * heat_capacity[c, li] * dx
                 cap[c, lnk] += half
                 cap[c, lnk + 1] += half
-            valid &= np.isfinite(g[c, lnk]) and g[c, lnk] > 0.0
+            valid &= 0.0 < g[c, lnk] < np.inf
         for j in range(nl + 1):
-            valid &= np.isfinite(cap[c, j]) and cap[c, j] >= 0.0
+            valid &= 0.0 <= cap[c, j] < np.inf
     return cap, g, coef, valid
 
 

@@ -49,6 +49,7 @@ Scheme details
 
 from __future__ import annotations
 
+import functools
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -169,6 +170,7 @@ class PreparedFD:
         self.depth_face = np.array([f for f, _, _ in planes], dtype=np.int64)
         self.depth_inner = np.flatnonzero(self.depth_face < 0)  # the planes inside the wall
         self.face_planes = [(d, int(f)) for d, f in enumerate(self.depth_face) if f >= 0]  # (plane, face)
+        self._all_rows = np.ones(len(self.probe_names) + 2 + len(planes), dtype=np.bool_)  # output rows wanted
         self.depth_link = np.array([planes[d][1] for d in self.depth_inner], dtype=np.int64)
         self.depth_node = np.array([planes[d][2] for d in self.depth_inner], dtype=np.int64)
         # conductivity laws per link (constant over candidates except through g_ref); layers whose
@@ -222,13 +224,15 @@ class PreparedFD:
     def _sized(self, nc: int) -> dict[str, np.ndarray]:
         """Arrays that depend on the batch size only, formed once per size (the kernels only read them):
         the faces' surface coefficients ``face_h`` (nc, 2) [W/(m2K)], the empty initial state ``no_state``
-        (nc, 0), and the plane capacities ``no_planes`` (nc, 0) of a study without inner depth planes."""
+        (nc, 0), and the plane capacities ``no_planes`` (nc, 0) and modal depth weights ``no_depth_weights``
+        (nc, 0, 4) of a study without inner depth planes."""
         sized = self._per_size.get(nc)
         if sized is None:
             sized = {
                 "face_h": np.repeat(self.bc_h[None, :], nc, axis=0),
                 "no_state": np.zeros((nc, 0)),
                 "no_planes": np.zeros((nc, 0)),
+                "no_depth_weights": np.zeros((nc, 0, 4)),
             }
             self._per_size[nc] = sized
         return sized
@@ -266,7 +270,7 @@ class PreparedFD:
         j0, m = operator.unknown_range(self.grid.n_nodes, self.bc_type)
         return int(j0), int(m)
 
-    @property
+    @functools.cached_property
     def modal_possible(self) -> bool:
         """Whether the exact modal fast path applies: constant conductivities (no lambda(T)) and at
         least one unknown node (:mod:`wallcal.engines.modal`)."""
@@ -391,47 +395,22 @@ class PreparedFD:
         nc, n_nodes = cap.shape
         npr, n_d = pa.shape[1], len(self.depth_face)
         sized = self._sized(nc)
-        if rows is None:
-            want = sized.get("all_rows")
-            if want is None:
-                want = sized["all_rows"] = np.ones(npr + 2 + n_d, dtype=np.bool_)
-        else:
-            want = np.asarray(rows, dtype=np.bool_)
+        want = self._all_rows if rows is None else np.asarray(rows, dtype=np.bool_)
         if n_d:
             want_k, dws = self._modal_depth_rows(theta, g, cplus, want)
         else:
-            want_k, dws = want[: npr + 2], sized.get("no_depth_weights")
-            if dws is None:
-                dws = sized["no_depth_weights"] = np.zeros((nc, 0, 4))
+            want_k, dws = want[: npr + 2], sized["no_depth_weights"]
         t0 = sized["no_state"] if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         per_candidate = (cap, g, theta, bc_theta, pa, pb, pw, dws, t0)
-        keys = [(a, b) for a, b in modal.input_thetas(theta, bc_theta, self.bc_type).tolist()]
-        groups = dict.fromkeys(keys)
-
-        def run(key, idx):
-            """The candidates ``idx`` (None: all) with the plan of input thetas ``key``."""
-            plan = self._output_plan(key)
-
-            def part(sl):
-                i = idx if sl is None else (sl if idx is None else idx[sl])
-                cap, g, theta, bc_theta, pa, pb, pw, dws, t0 = (
-                    per_candidate if i is None else (a[i] for a in per_candidate)
-                )
-                return modal.modal_batch(
-                    cap, g, theta, bc_theta, pa, pb, pw, self.depth_link, dws, self.bc_type, self.bc_h, self.theta,
-                    self.dt, self.ue, self.ui, plan, want_k, t0,
-                )  # fmt: skip
-
-            return in_threads(part, nc if idx is None else len(idx))
-
-        if len(groups) == 1:
-            out, tend = run(keys[0], None)
+        if not n_forced.any():  # no theta raised: every input enters with the scheme's theta
+            out, tend = self._modal_group(per_candidate, None, self._output_plan(), want_k)
         else:
+            keys = [(a, b) for a, b in modal.input_thetas(theta, bc_theta, self.bc_type).tolist()]
             out = np.empty((nc, npr + 2 + 2 * len(self.depth_link), len(self.out_step)))
             tend = np.empty((nc, n_nodes))
-            for key in groups:
+            for key in dict.fromkeys(keys):
                 idx = np.flatnonzero([k == key for k in keys])
-                out[idx], tend[idx] = run(key, idx)
+                out[idx], tend[idx] = self._modal_group(per_candidate, idx, self._output_plan(key), want_k)
         if not np.isfinite(tend).all():
             raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
         if n_d:
@@ -440,6 +419,20 @@ class PreparedFD:
             out[:, npr + 2 :][:, ~want[npr + 2 :]] = np.nan
         energy = np.full((nc, 3), np.nan)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
+
+    def _modal_group(self, per_candidate, idx, plan, want_k):
+        """The modal kernel over the candidates ``idx`` (None: all) of ``per_candidate`` (cap, g, theta,
+        bc_theta, pa, pb, pw, dws, t0) with one output plan, in threads (:func:`in_threads`)."""
+
+        def part(sl):
+            i = idx if sl is None else (sl if idx is None else idx[sl])
+            cap, g, theta, bc_theta, pa, pb, pw, dws, t0 = per_candidate if i is None else (a[i] for a in per_candidate)
+            return modal.modal_batch(
+                cap, g, theta, bc_theta, pa, pb, pw, self.depth_link, dws, self.bc_type, self.bc_h, self.theta, self.dt,
+                self.ue, self.ui, plan, want_k, t0,
+            )  # fmt: skip
+
+        return in_threads(part, len(per_candidate[0]) if idx is None else len(idx))
 
     def _modal_depth_rows(self, theta, g, cplus, want):
         """The modal kernel's rows wanted (the depth planes' two level rows each; a plane on a face needs

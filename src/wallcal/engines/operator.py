@@ -56,40 +56,18 @@ def assemble_operator(g, w, bc_type, bc_h, w_bc, j0, m, diag, off):
 
 
 @njit(cache=True)
-def node_stiffness(cap, g, bc_type, bc_h, dt):
-    """``s_j = dt (sum of the conductances at node j) / c_j`` (face terms included,
-    :func:`wallcal.engines.boundary.face_conductance`), shape (c, j): inf for a node without capacity, 0 for
-    a known face node. ``bc_h`` (c, 2): the faces' surface coefficients of each candidate."""
-    nc, n = cap.shape
-    s = np.empty((nc, n))
-    for c in range(nc):
-        for j in range(n):
-            total = 0.0
-            if j < n - 1:
-                total += g[c, j]
-            if j > 0:
-                total += g[c, j - 1]
-            if j == 0:
-                total += boundary.face_conductance(bc_type[0], bc_h[c, 0])
-            if j == n - 1:
-                total += boundary.face_conductance(bc_type[1], bc_h[c, 1])
-            s[c, j] = total * dt / cap[c, j] if cap[c, j] > 0.0 else np.inf
-        if boundary.is_known(bc_type[0]):
-            s[c, 0] = 0.0
-        if boundary.is_known(bc_type[1]):
-            s[c, n - 1] = 0.0
-    return s
-
-
-@njit(cache=True)
 def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     """theta per link (c, l) and per face term (c, 2), and the number of terms whose theta was raised (c,).
 
     The discrete maximum principle: a step ``T^{n+1} = A^-1 (B T^n + inputs)`` with the M-matrix
     ``A = Cap/dt + K_theta`` is monotone (the response to a step in an input is monotone and bounded by
     the inputs) when ``B = Cap/dt - K_{1-theta}`` has no negative entry, i.e. at every unknown node
-    ``sum (1 - theta) g dt <= c_j`` over its terms. With the node stiffness ``s_j``
-    (:func:`node_stiffness`), a link between nodes a and b gets
+    ``sum (1 - theta) g dt <= c_j`` over its terms. With the node stiffness
+
+        s_j = dt (sum of the conductances at node j, face term included) / c_j
+
+    (:func:`wallcal.engines.boundary.face_conductance`; inf for a node without capacity, 0 for a known
+    face node), a link between nodes a and b gets
 
         theta_l = max(theta0, 1 - (1 - theta0) L / max(s_a, s_b)),   L = stiff_limit,
 
@@ -97,38 +75,53 @@ def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     capacity: 1). With ``L = 1 / (1 - theta0)`` (2 for Crank-Nicolson, the default) this is exactly
     the condition, met with equality at the stiff nodes; terms between nodes with ``s <= L`` keep
     theta0. ``L = inf`` keeps theta0 except at nodes without capacity (theta 1).
-    (numba: it runs on every call of the engine; ``bc_h`` (c, 2) as in :func:`node_stiffness`.)
+
+    ``bc_h`` (c, 2): the faces' surface coefficients of each candidate. numba, one function without
+    callees of its own and arrays by ``np.empty`` only: it runs on every call of the engine, and each
+    jitted callee or other numpy call would add to what a fresh install compiles.
     """
-    t0 = float(theta0)
     nc, nl = g.shape
-    theta = np.full((nc, nl), t0)
-    bc_theta = np.full((nc, 2), t0)
-    n_raised = np.zeros(nc, dtype=np.int64)
-    if t0 >= 1.0:
-        return theta, bc_theta, n_raised
-    s = node_stiffness(cap, g, bc_type, bc_h, dt)
-    budget = (1.0 - t0) * stiff_limit
+    theta = np.empty((nc, nl))
+    bc_theta = np.empty((nc, 2))
+    n_raised = np.empty(nc, dtype=np.int64)
+    s = np.empty(nl + 1)  # the node stiffness of one candidate
+    budget = (1.0 - theta0) * stiff_limit
     for c in range(nc):
-        for lnk in range(nl):
-            th = _raised_theta(t0, budget, max(s[c, lnk], s[c, lnk + 1]))
-            theta[c, lnk] = th
-            if th > t0:
+        h_e = boundary.face_conductance(bc_type[0], bc_h[c, 0])
+        h_i = boundary.face_conductance(bc_type[1], bc_h[c, 1])
+        for j in range(nl + 1):
+            total = 0.0
+            if j < nl:
+                total += g[c, j]
+            if j > 0:
+                total += g[c, j - 1]
+            if j == 0:
+                total += h_e
+            if j == nl:
+                total += h_i
+            s[j] = total * dt / cap[c, j] if cap[c, j] > 0.0 else np.inf
+        if boundary.is_known(bc_type[0]):
+            s[0] = 0.0
+        if boundary.is_known(bc_type[1]):
+            s[nl] = 0.0
+        n_raised[c] = 0
+        for k in range(nl + 2):  # the links, then the exterior and the interior face term
+            if k < nl:
+                sk = s[k] if s[k] > s[k + 1] else s[k + 1]
+                applies = True
+            else:  # a face term enters B through h; a face node without capacity is algebraic
+                sk = s[0] if k == nl else s[nl]
+                applies = (h_e if k == nl else h_i) > 0.0 or not sk < np.inf
+            th = theta0
+            if applies and theta0 < 1.0:
+                if not sk < np.inf:
+                    th = 1.0  # a node without capacity
+                elif sk * (1.0 - theta0) > budget:
+                    th = 1.0 - budget / sk
+            if k < nl:
+                theta[c, k] = th
+            else:
+                bc_theta[c, k - nl] = th
+            if th > theta0:
                 n_raised[c] += 1
-        for f in range(2):  # a face term enters B through h; a face node without capacity is algebraic
-            sf = s[c, 0 if f == 0 else nl]
-            if boundary.face_conductance(bc_type[f], bc_h[c, f]) > 0.0 or not np.isfinite(sf):
-                th = _raised_theta(t0, budget, sf)
-                bc_theta[c, f] = th
-                if th > t0:
-                    n_raised[c] += 1
     return theta, bc_theta, n_raised
-
-
-@njit(cache=True)
-def _raised_theta(theta0, budget, s):
-    """theta of a term whose stiffest node has stiffness s: (1 - theta) s <= budget."""
-    if not np.isfinite(s):
-        return 1.0  # a node without capacity
-    if s * (1.0 - theta0) > budget:
-        return 1.0 - budget / s
-    return theta0
