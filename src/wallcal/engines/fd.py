@@ -224,8 +224,9 @@ class PreparedFD:
     def _sized(self, nc: int) -> dict[str, np.ndarray]:
         """Arrays that depend on the batch size only, formed once per size (the kernels only read them):
         the faces' surface coefficients ``face_h`` (nc, 2) [W/(m2K)], the empty initial state ``no_state``
-        (nc, 0), and the plane capacities ``no_planes`` (nc, 0) and modal depth weights ``no_depth_weights``
-        (nc, 0, 4) of a study without inner depth planes."""
+        (nc, 0), the plane capacities ``no_planes`` (nc, 0) and modal depth weights ``no_depth_weights``
+        (nc, 0, 4) of a study without inner depth planes; :meth:`_probe_weights` adds the prepared wall's probe
+        depths and their interpolation weights."""
         sized = self._per_size.get(nc)
         if sized is None:
             sized = {
@@ -249,14 +250,15 @@ class PreparedFD:
 
     # ------------------------------------------------------------------ running
     def _probe_weights(self, probe_depths: np.ndarray | None, nc: int) -> tuple[np.ndarray, ...]:
-        """Probe interpolation (grid.probe_weights); at the prepared wall's own depths computed once per
-        batch size."""
-        if probe_depths is not None:
-            return probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
-        cache = self.__dict__.setdefault("_default_probe_weights", {})
-        if nc not in cache:
-            cache[nc] = probe_weights(self.grid, self.probe_depth_matrix(n=nc), self.probe_sides)
-        return cache[nc]
+        """Probe interpolation (grid.probe_weights); at the prepared wall's own depths (``probe_depths``
+        None or equal to them) computed once per batch size."""
+        sized = self._sized(nc)
+        if "probe_weights" not in sized:
+            sized["probe_depths"] = self.probe_depth_matrix(n=nc)
+            sized["probe_weights"] = probe_weights(self.grid, sized["probe_depths"], self.probe_sides)
+        if probe_depths is None or np.array_equal(probe_depths, sized["probe_depths"]):
+            return sized["probe_weights"]
+        return probe_weights(self.grid, np.asarray(probe_depths, dtype=float), self.probe_sides)
 
     def probe_depth_matrix(self, walls: list[Wall] | None = None, n: int = 1) -> np.ndarray:
         """Probe depths [m], shape (n_candidates, n_probes)."""
