@@ -225,7 +225,8 @@ class PreparedFD:
         """Arrays that depend on the batch size only, formed once per size (the kernels only read them):
         the faces' surface coefficients ``face_h`` (nc, 2) [W/(m2K)], the empty initial state ``no_state``
         (nc, 0), the plane capacities ``no_planes`` (nc, 0) and modal depth weights ``no_depth_weights``
-        (nc, 0, 4) of a study without inner depth planes; :meth:`_probe_weights` adds the prepared wall's probe
+        (nc, 0, 4) of a study without inner depth planes, the modal path's energies ``no_energy`` (nc, 3) (NaN,
+        copied per result); :meth:`_probe_weights` adds the prepared wall's probe
         depths and their interpolation weights."""
         sized = self._per_size.get(nc)
         if sized is None:
@@ -234,6 +235,7 @@ class PreparedFD:
                 "no_state": np.zeros((nc, 0)),
                 "no_planes": np.zeros((nc, 0)),
                 "no_depth_weights": np.zeros((nc, 0, 4)),
+                "no_energy": np.full((nc, 3), np.nan),
             }
             self._per_size[nc] = sized
         return sized
@@ -404,7 +406,7 @@ class PreparedFD:
             want_k, dws = want[: npr + 2], sized["no_depth_weights"]
         t0 = sized["no_state"] if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         per_candidate = (cap, g, theta, bc_theta, pa, pb, pw, dws, t0)
-        if not n_forced.any():  # no theta raised: every input enters with the scheme's theta
+        if not np.count_nonzero(n_forced):  # no theta raised: every input enters with the scheme's theta
             out, tend = self._modal_group(per_candidate, None, self._output_plan(), want_k)
         else:
             keys = [(a, b) for a, b in modal.input_thetas(theta, bc_theta, self.bc_type).tolist()]
@@ -419,7 +421,7 @@ class PreparedFD:
             inner = out[:, npr + 2 :: 2] + out[:, npr + 3 :: 2] + self._known_node_terms(dws, n_nodes)
             out = self._with_depth_rows(out[:, : npr + 2], inner)
             out[:, npr + 2 :][:, ~want[npr + 2 :]] = np.nan
-        energy = np.full((nc, 3), np.nan)
+        energy = sized["no_energy"].copy()  # the balance is the general path's
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
 
     def _modal_group(self, per_candidate, idx, plan, want_k):
