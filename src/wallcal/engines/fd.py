@@ -40,11 +40,12 @@ Scheme details
   raised thetas and nodes without capacity included; lambda(T) walls the general tridiagonal path
   (:mod:`wallcal.engines.kernels`), which runs any wall with ``path="general"``.
   ``run_batch(path="auto")`` chooses, the result's ``path`` says which ran.
-- Per call, Python only checks the inputs and calls numba functions (grid
-  assembly, thetas, probe weights, the batch kernel); everything that depends
-  only on the boundary data and output times (theta-weighted inputs, the modal
-  output plan) is computed once per :class:`PreparedFD`. No BLAS or LAPACK is
-  called inside the kernels, so their threads cannot oversubscribe ours.
+- Per call, Python calls two small numba functions (:func:`wallcal.grid.assemble_lines`: capacities,
+  conductances, temperature coefficients and the validity check; :func:`wallcal.engines.operator.link_thetas`)
+  and the batch kernel; everything that depends only on the boundary data, output times or batch size
+  (theta-weighted inputs, the modal output plan, probe weights at the prepared wall's depths, empty arrays)
+  is computed once per :class:`PreparedFD`. No BLAS or LAPACK is called inside the kernels, so their
+  threads cannot oversubscribe ours.
 """
 
 from __future__ import annotations
