@@ -54,9 +54,11 @@ nan = float("nan")
 DEFAULT_EFFECTIVE_SAMPLES = 500
 #: the default chain stops here even when it is not yet adequate (it says so)
 DEFAULT_MAX_STEPS = 5000
-#: the default chain is first checked at this many steps, then every 10 % of its length, at least every ADAPTIVE_EVERY
+#: the default chain is first checked at this many steps, then whenever it has grown by ADAPTIVE_GROWTH (at least
+#: ADAPTIVE_EVERY steps): a check costs ~1 s per 2000 steps on two cores, so the checks stay a few % of the run
 ADAPTIVE_FIRST_CHECK = 100
 ADAPTIVE_EVERY = 25
+ADAPTIVE_GROWTH = 0.2
 #: an adequate chain is at least this many autocorrelation times long after its burn-in
 MIN_TAU_MULTIPLE = 10
 #: ... and its autocorrelation time no longer grows with the chain: the estimate over the whole chain after burn-in
@@ -891,8 +893,8 @@ def posterior(
     steps : int, optional
         Ensemble steps (simulations = walkers x steps). Default: run until the chain is adequate
         (:func:`chain_diagnostics`: ``effective_samples`` effective samples, at least ``MIN_TAU_MULTIPLE``
-        autocorrelation times after burn-in, the autocorrelation time no longer growing), checked every 10 % of
-        the chain (at least every 25 steps), at most ``max_steps``.
+        autocorrelation times after burn-in, the autocorrelation time no longer growing), checked whenever the
+        chain has grown by 20 % (at least 25 steps), at most ``max_steps``.
     seed : int
     out_dir : path, optional
         The checkpoint ``.<name>.posterior-checkpoint.npz`` is kept next to it.
@@ -1033,7 +1035,8 @@ def posterior(
                     )
                     if d.adequate:
                         break
-                    next_check = len(prev_chain) + done + max(ADAPTIVE_EVERY, int(0.1 * (len(prev_chain) + done)))
+                    length = len(prev_chain) + done
+                    next_check = length + max(ADAPTIVE_EVERY, int(ADAPTIVE_GROWTH * length))
                     ess = f", {d.effective_samples:.0f} effective samples" + (
                         "" if d.stable else " (tau still growing)"
                     )
@@ -1129,13 +1132,29 @@ class ChainDiagnostics:
     reasons: list
 
 
-def _integrated_time(chain: np.ndarray) -> np.ndarray:
-    import emcee
+def _integrated_time(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
+    """Integrated autocorrelation time per parameter of a chain (steps, walkers, n) [steps]: emcee's estimate
+    (``emcee.autocorr.integrated_time``: the autocorrelation function of each walker's series averaged over the
+    walkers, summed over Sokal's automatic window with ``c``), with the FFTs of all walkers at once; nan for a
+    parameter in which a walker never moved."""
+    from scipy import fft
 
-    if chain.shape[0] <= 10:
+    nsteps = chain.shape[0]
+    if nsteps <= 10:
         return np.full(chain.shape[2], nan)
-    with np.errstate(invalid="ignore", divide="ignore"):  # a walker that never moved: nan for its parameters
-        return np.asarray(emcee.autocorr.integrated_time(chain, quiet=True, tol=0), dtype=float)
+    size = fft.next_fast_len(2 * nsteps - 1, real=True)  # zero-padded: the circular correlation is the linear one
+    out = np.empty(chain.shape[2])
+    lag = np.arange(nsteps)
+    for j in range(chain.shape[2]):
+        x = chain[:, :, j] - chain[:, :, j].mean(axis=0, keepdims=True)
+        f = fft.rfft(x, n=size, axis=0, workers=-1)
+        acf = fft.irfft(f * np.conjugate(f), n=size, axis=0, workers=-1)[:nsteps]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rho = (acf / acf[0][None]).mean(axis=1)
+        taus = 2.0 * np.cumsum(rho) - 1.0
+        short = lag < c * taus
+        out[j] = taus[int(np.argmin(short))] if short.any() else taus[-1]
+    return out
 
 
 def transient_end(log_prob: np.ndarray) -> int:
@@ -1165,18 +1184,14 @@ def chain_diagnostics(chain: np.ndarray, log_prob=None, target: float = DEFAULT_
     autocorrelation times long after burn-in, and holds ``target`` effective samples.
     """
     nsteps, walkers = chain.shape[:2]
-    tau_all = _integrated_time(chain)
-    t_all = float(np.nanmax(tau_all)) if np.isfinite(tau_all).any() else float(nsteps)
-    if log_prob is not None and len(log_prob) == nsteps:
-        burn = max(transient_end(log_prob), 1)
-        tau = _integrated_time(chain[burn:])
-        t = float(np.nanmax(tau)) if np.isfinite(tau).any() else t_all
-        burn = max(burn, int(np.ceil(t)))
-    else:
-        burn = int(np.ceil(2 * t_all))
-    burn = int(min(burn, nsteps // 2))
+    start = max(transient_end(log_prob), 1) if log_prob is not None and len(log_prob) == nsteps else 0
+    start = min(start, nsteps // 2)
+    tau = _integrated_time(chain[start:])
+    t = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
+    burn = int(min(max(start, int(np.ceil(t))) if start else int(np.ceil(2 * t)), nsteps // 2))
     post = chain[burn:]
-    tau = _integrated_time(post)
+    if burn != start:
+        tau = _integrated_time(post)
     tmax = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
     early = _integrated_time(post[: int(STABLE_SHARE * len(post))])
     tau_early = float(np.nanmax(early)) if np.isfinite(early).any() else nan
