@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wallcal.analysis.posterior import chain_diagnostics, posterior, transient_end
+from wallcal.analysis.posterior import chain_diagnostics, integrated_time, posterior, transient_end
 from wallcal.errors import WallcalError
 
 pytest.importorskip("emcee")
@@ -25,6 +25,17 @@ def _ar1_chain(steps, walkers, n, phi, seed=0, start=0.0):
     for t in range(1, steps):
         x[t] = phi * x[t - 1] + s * rng.standard_normal((walkers, n))
     return x
+
+
+def test_integrated_time_is_emcees():
+    """All walkers' FFTs at once give emcee's estimate (mean of the walkers' autocorrelation functions, Sokal's
+    window with c = 5)."""
+    import emcee
+
+    for steps, phi in ((300, 0.5), (1001, 0.95)):
+        chain = _ar1_chain(steps, 24, 3, phi, seed=steps)
+        expected = emcee.autocorr.integrated_time(chain, quiet=True, tol=0)
+        assert np.allclose(integrated_time(chain), expected, rtol=1e-10)
 
 
 def test_a_long_chain_is_adequate_and_its_autocorrelation_time_is_right():

@@ -1132,7 +1132,7 @@ class ChainDiagnostics:
     reasons: list
 
 
-def _integrated_time(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
+def integrated_time(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
     """Integrated autocorrelation time per parameter of a chain (steps, walkers, n) [steps]: emcee's estimate
     (``emcee.autocorr.integrated_time``: the autocorrelation function of each walker's series averaged over the
     walkers, summed over Sokal's automatic window with ``c``), with the FFTs of all walkers at once; nan for a
@@ -1186,14 +1186,14 @@ def chain_diagnostics(chain: np.ndarray, log_prob=None, target: float = DEFAULT_
     nsteps, walkers = chain.shape[:2]
     start = max(transient_end(log_prob), 1) if log_prob is not None and len(log_prob) == nsteps else 0
     start = min(start, nsteps // 2)
-    tau = _integrated_time(chain[start:])
+    tau = integrated_time(chain[start:])
     t = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
     burn = int(min(max(start, int(np.ceil(t))) if start else int(np.ceil(2 * t)), nsteps // 2))
     post = chain[burn:]
     if burn != start:
-        tau = _integrated_time(post)
+        tau = integrated_time(post)
     tmax = float(np.nanmax(tau)) if np.isfinite(tau).any() else float(nsteps)
-    early = _integrated_time(post[: int(STABLE_SHARE * len(post))])
+    early = integrated_time(post[: int(STABLE_SHARE * len(post))])
     tau_early = float(np.nanmax(early)) if np.isfinite(early).any() else nan
     ess = walkers * len(post) / tmax if tmax > 0 else 0.0
     stable = bool(np.isfinite(tau_early) and tmax <= STABLE_RATIO * tau_early)
