@@ -29,9 +29,11 @@ Priors are uniform on the calibration bounds. The ensemble samples the log of ea
 (:class:`LogCoordinates`; the prior's Jacobian added), where the structural flat directions are straight,
 and starts from the Laplace approximation of the posterior at the optimum (:func:`initial_walkers`), so that
 it spans the posterior's flat valleys from the first step. emcee runs with ``vectorize=True``: each half-step
-of the ensemble is one engine batch. The chain is checkpointed atomically (``.npz``) every
-few seconds and on Ctrl-C, so an interruption loses nothing and ``resume=True``
-continues.
+of the ensemble is one engine batch (proposals outside the prior box cost no simulation). By default the chain
+runs until it is adequate (:func:`chain_diagnostics`): enough effective samples, and an autocorrelation time that
+no longer grows with the chain (a chain shorter than its autocorrelation time gives an estimate capped by its
+length, and effective samples that count its length, not its mixing). The chain is checkpointed atomically
+(``.npz``) every few seconds and on Ctrl-C, so an interruption loses nothing and ``resume=True`` continues.
 """
 
 from __future__ import annotations
