@@ -1210,7 +1210,8 @@ def chain_diagnostics(chain: np.ndarray, log_prob=None, target: float = DEFAULT_
     if not stable:
         reasons.append(
             f"the autocorrelation time still grows with the chain ({tau_early:.0f} steps over the first "
-            f"{STABLE_SHARE:.0%} after burn-in, {tmax:.0f} over all): it and the effective samples are lower bounds"
+            f"{STABLE_SHARE:.0%} after burn-in, {tmax:.0f} over all): it is a lower bound, the effective samples an "
+            "upper one"
         )
     return ChainDiagnostics(
         tau=tau,
