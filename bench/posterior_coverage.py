@@ -270,6 +270,8 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
                 "acceptance": r.acceptance,
                 "tau max": float(np.nanmax(r.tau)),
                 "effective samples": effective_samples(r),
+                "steps": r.chain.shape[0],
+                "adequate": r.adequate,
                 "missed": ", ".join(
                     r.combinations.index[
                         ~r.combinations["verdict"].str.startswith("not") & ~r.combinations["inside 95%"].astype(bool)
@@ -328,8 +330,8 @@ def _show(r: dict) -> None:
         f"w {r['w']:.3f}): 50 % {r['inside 50%']}/{r['n']}, 95 % {r['inside 95%']}/{r['n']}; "
         f"structure {'REJECTED' if r['rejected'] else 'not rejected'} ({r['reasons']} reasons); "
         f"calibration {r['calibration s']:.0f} s, posterior {r['posterior s']:.0f} s (acceptance "
-        f"{r['acceptance']:.2f}, autocorrelation time {r['tau max']:.0f} steps, {r['effective samples']:.0f} "
-        "effective samples)",
+        f"{r['acceptance']:.2f}, {r['steps']} steps, autocorrelation time {r['tau max']:.0f} steps, "
+        f"{r['effective samples']:.0f} effective samples, chain {'adequate' if r['adequate'] else 'NOT adequate'})",
         flush=True,
     )
     if r["missed"]:
