@@ -83,3 +83,12 @@ def test_the_default_chain_stops_at_max_steps_and_says_it_is_not_adequate(exampl
     assert r.to_json()["adequate"] is False
     with pytest.raises(WallcalError, match="effective_samples"):
         posterior(example_study, effective_samples=0, progress=False)
+
+
+@pytest.mark.parametrize("flag", ["--steps", "--effective-samples", "--max-steps"])
+def test_cli_refuses_a_chain_length_that_is_not_positive(flag, capsys):
+    from conftest import EXAMPLE
+    from wallcal.cli import main
+
+    assert main(["posterior", str(EXAMPLE), flag, "0"]) == 2
+    assert f"{flag}: must be positive" in capsys.readouterr().err

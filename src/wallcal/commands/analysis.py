@@ -309,7 +309,15 @@ def _print_combinations(a):
 def run_posterior(args) -> int:
     from ..analysis.identifiability import identifiability
     from ..analysis.posterior import missing_from_diagnosis, posterior
+    from ..errors import WallcalError
 
+    for flag, value in (
+        ("--steps", args.steps),
+        ("--effective-samples", args.effective_samples),
+        ("--max-steps", args.max_steps),
+    ):
+        if value is not None and not value > 0:
+            raise WallcalError(f"{flag}: must be positive, got {value}")
     study, _, x0 = _study_space_optimum(args)
     missing = missing_from_diagnosis(study, args.diagnosis) if args.diagnosis else []
     out = _out(args, "posterior")
