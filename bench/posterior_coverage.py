@@ -347,12 +347,13 @@ def totals(df: pd.DataFrame) -> pd.DataFrame:
     return g
 
 
-def speed(workdir: Path, walkers: int | None, steps: int | None, space: str) -> None:
-    """Time the posterior of a 22-parameter space on the ``all`` campaign (starting at its calibrated optimum):
+def speed(workdir: Path, walkers: int | None, steps: int | None, space: str, campaign: str = "all") -> None:
+    """Time the posterior of a 22-parameter space on a campaign (default ``all``; starting at its calibrated optimum):
     ``lambdaT`` (the study's 18 + a probe depth, a contact resistance, two lambda(T) coefficients: every
     candidate wall is nonlinear, the engine's general path) or ``linear`` (18 + a probe depth, two contact
     resistances, a sensor offset: the modal fast path)."""
-    path = make_campaign(CAMPAIGNS["all"], workdir / f"speed-{space}")
+    folder = f"speed-{space}" if campaign == "all" else f"speed-{campaign}-{space}"
+    path = make_campaign(CAMPAIGNS[campaign], workdir / folder)
     text = path.read_text() + (EXTENSIONS_22 if space == "lambdaT" else LINEAR_22)
     path.write_text(text)
     study = wallcal.load_study(path)
@@ -366,7 +367,7 @@ def speed(workdir: Path, walkers: int | None, steps: int | None, space: str) -> 
     ess = effective_samples(r)
     ok = "OK" if dt <= 120 and r.adequate else "SLOW" if r.adequate else "NOT ADEQUATE"
     print(
-        f"posterior of a {r.space.n}-parameter space ({kind}): "
+        f"posterior of a {r.space.n}-parameter space ({kind}; campaign {campaign}): "
         f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps = {r.evaluations} proposals, {r.simulations} "
         f"simulated (the rest outside the prior box) in {dt:.1f} s ({r.evaluations / dt:.0f} proposals/s, "
         f"{r.simulations / dt:.0f} simulations/s) -> {ok} (target: adequate in 120 s); acceptance "
@@ -398,13 +399,19 @@ def main() -> None:
     ap.add_argument("--speed-steps", type=int, help="default the posterior's (until the chain is adequate)")
     ap.add_argument("--speed-walkers", type=int, help="default the posterior's (4 n)")
     ap.add_argument("--speed-space", choices=("lambdaT", "linear"), default="lambdaT")
+    ap.add_argument(
+        "--speed-campaign",
+        choices=tuple(CAMPAIGNS),
+        default="all",
+        help="the campaign whose posterior --speed times (all: its structure is not the space's)",
+    )
     ap.add_argument("--workdir", help="keep the synthetic campaigns here (default: a temporary folder)")
     ap.add_argument("--csv", help="write the per-campaign rows here")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(args.workdir or tmp)
         if args.speed:
-            speed(workdir, args.speed_walkers, args.speed_steps, args.speed_space)
+            speed(workdir, args.speed_walkers, args.speed_steps, args.speed_space, args.speed_campaign)
             return
         print(
             f"settings: {args.walkers or '4 n'} walkers x {args.steps or 'until adequate'} steps per posterior, "
