@@ -226,8 +226,7 @@ class PreparedFD:
         """Arrays that depend on the batch size only, formed once per size (the kernels only read them):
         the faces' surface coefficients ``face_h`` (nc, 2) [W/(m2K)], the empty initial state ``no_state``
         (nc, 0), the plane capacities ``no_planes`` (nc, 0) and modal depth weights ``no_depth_weights``
-        (nc, 0, 4) of a study without inner depth planes, the modal path's energies ``no_energy`` (nc, 3) (NaN,
-        copied per result); :meth:`_probe_weights` adds the prepared wall's probe
+        (nc, 0, 4) of a study without inner depth planes; :meth:`_probe_weights` adds the prepared wall's probe
         depths and their interpolation weights."""
         sized = self._per_size.get(nc)
         if sized is None:
@@ -236,7 +235,6 @@ class PreparedFD:
                 "no_state": np.zeros((nc, 0)),
                 "no_planes": np.zeros((nc, 0)),
                 "no_depth_weights": np.zeros((nc, 0, 4)),
-                "no_energy": np.full((nc, 3), np.nan),
             }
             self._per_size[nc] = sized
         return sized
@@ -369,7 +367,7 @@ class PreparedFD:
         the face rows of ``out``) for the planes inside the wall, NaN for the faces' (filled by the caller)."""
         npr = len(self.probe_names)
         if not len(self.depth_face):
-            return out if out.shape[1] == npr + 2 else out[:, : npr + 2]
+            return out[:, : npr + 2]
         if inner is None:
             inner = out[:, npr + 2 :]
         full = np.full((out.shape[0], npr + 2 + len(self.depth_face), out.shape[2]), np.nan)
@@ -422,7 +420,7 @@ class PreparedFD:
             inner = out[:, npr + 2 :: 2] + out[:, npr + 3 :: 2] + self._known_node_terms(dws, n_nodes)
             out = self._with_depth_rows(out[:, : npr + 2], inner)
             out[:, npr + 2 :][:, ~want[npr + 2 :]] = np.nan
-        energy = sized["no_energy"].copy()  # the balance is the general path's
+        energy = np.full((nc, 3), np.nan)  # the balance is the general path's
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
 
     def _modal_group(self, per_candidate, idx, plan, want_k):
