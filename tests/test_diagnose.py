@@ -516,3 +516,7 @@ def test_a_structure_holding_parameters_at_bounds_needs_only_positive_evidence()
         set(), {}, {}, singles={"A": (-gain - 1.0, {"lambda[3]"}), "B": (-gain, ()), "C": (-WEAK_DELTA / 2, ())}
     )
     assert adopted == ("B",) and weak == [(["B"], pytest.approx(-gain), frozenset({"lambda[3]"}), frozenset())]
+    # without a bound check (held=None, the default) only the strong threshold applies
+    fits = {"A": F(names=("A",), bic=-gain)}
+    fit, adopted, _, weak = forward_select(F(names=(), bic=0.0), fits, None, lambda f: f, lambda names: True)
+    assert adopted == () and not weak

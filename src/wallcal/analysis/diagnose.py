@@ -869,7 +869,7 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         if best.bic > current.bic - ADOPT_DELTA:
             # the structure so far fails its own check (parameters held at bounds): positive evidence suffices for
             # a candidate that frees some of them
-            freeing = [f for f in trials if f.bic <= current.bic - WEAK_DELTA and before - held(f)]
+            freeing = [f for f in trials if f.bic <= current.bic - WEAK_DELTA and before - held(f)] if before else []
             if not freeing:
                 break
             best = min(freeing, key=lambda f: f.bic)
