@@ -876,8 +876,8 @@ def posterior(
     bias: bool = True,
     tempering: str = "sandwich",
     missing_extensions=(),
-    effective_samples: float = DEFAULT_EFFECTIVE_SAMPLES,
-    max_steps: int = DEFAULT_MAX_STEPS,
+    effective_samples: float | None = None,
+    max_steps: int | None = None,
 ) -> PosteriorResult:
     """Sample the posterior of the calibration parameters.
 
@@ -918,10 +918,10 @@ def posterior(
         Structure extensions that ``wallcal diagnose`` adopted for this study but the sampled structure lacks;
         any makes the self-check say that the data reject the structure.
 
-    effective_samples : float
-        Effective samples an adequate chain holds.
-    max_steps : int
-        Longest default chain (when ``steps`` is not given) [steps].
+    effective_samples : float, optional
+        Effective samples an adequate chain holds (default :data:`DEFAULT_EFFECTIVE_SAMPLES`).
+    max_steps : int, optional
+        Longest default chain (when ``steps`` is not given) [steps] (default :data:`DEFAULT_MAX_STEPS`).
 
     Returns
     -------
@@ -944,9 +944,9 @@ def posterior(
     nw = int(walkers or max(4 * n, 16))
     nw += nw % 2
     adaptive = steps is None
-    for key, value in (("steps", steps), ("max_steps", max_steps), ("effective_samples", effective_samples)):
-        if value is not None and not value > 0:
-            raise WallcalError(f"{key}: must be positive, got {value!r}")
+    check_positive({"steps": steps, "max_steps": max_steps, "effective_samples": effective_samples})
+    effective_samples = DEFAULT_EFFECTIVE_SAMPLES if effective_samples is None else effective_samples
+    max_steps = DEFAULT_MAX_STEPS if max_steps is None else max_steps
     steps = int(max_steps if adaptive else steps)
     if max_evaluations:
         steps = min(steps, max(1, int(max_evaluations) // nw))
@@ -1101,6 +1101,16 @@ def ensemble_sampler(like, walkers: int, n: int, seed: int):
     )
     sampler.random_state = np.random.RandomState(seed).get_state()
     return sampler
+
+
+def check_positive(settings: dict) -> None:
+    """Raise :class:`WallcalError` naming the first of ``settings`` (name -> value; None: not given) that is not
+    positive (the chain's length settings; the command line checks its flags with it before calibrating)."""
+    from ..errors import WallcalError
+
+    for name, value in settings.items():
+        if value is not None and not value > 0:
+            raise WallcalError(f"{name}: must be positive, got {value!r}")
 
 
 @dataclass

@@ -151,8 +151,8 @@ def register(sub) -> None:
         help="chain length (default: until the chain is adequate: --effective-samples, its autocorrelation time "
         "no longer growing, at most --max-steps)",
     )
-    p.add_argument("--effective-samples", type=float, default=500, metavar="N", help="default 500")
-    p.add_argument("--max-steps", type=int, default=5000, metavar="N", help="longest default chain (default 5000)")
+    p.add_argument("--effective-samples", type=float, metavar="N", help="default 500")
+    p.add_argument("--max-steps", type=int, metavar="N", help="longest default chain (default 5000)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--resume", action="store_true")
     p.add_argument("--out", metavar="DIR", help="default: posterior/ next to the study")
@@ -308,16 +308,11 @@ def _print_combinations(a):
 
 def run_posterior(args) -> int:
     from ..analysis.identifiability import identifiability
-    from ..analysis.posterior import missing_from_diagnosis, posterior
-    from ..errors import WallcalError
+    from ..analysis.posterior import check_positive, missing_from_diagnosis, posterior
 
-    for flag, value in (
-        ("--steps", args.steps),
-        ("--effective-samples", args.effective_samples),
-        ("--max-steps", args.max_steps),
-    ):
-        if value is not None and not value > 0:
-            raise WallcalError(f"{flag}: must be positive, got {value}")
+    check_positive(
+        {"--steps": args.steps, "--effective-samples": args.effective_samples, "--max-steps": args.max_steps}
+    )
     study, _, x0 = _study_space_optimum(args)
     missing = missing_from_diagnosis(study, args.diagnosis) if args.diagnosis else []
     out = _out(args, "posterior")
