@@ -44,6 +44,16 @@ def test_example_space(example_study):
     assert sp.targets == ("T3A", "T2A", "T1A")
 
 
+def test_bound_sides_names_the_bound_within_its_band(example_study):
+    sp = parse_space(example_study)
+    x = sp.base.copy()
+    x[0], x[1], x[2] = sp.lower[0], sp.upper[1], sp.lower[2] + 1e-3 * (sp.upper[2] - sp.lower[2])
+    sides = sp.bound_sides(x)
+    assert sides[:3] == ["lower", "upper", ""]
+    assert sp.bound_sides(x, band=2e-3)[2] == "lower"
+    assert sides[3:] == [""] * (sp.n - 3)  # the base case lies inside the box
+
+
 def test_space_validation_reports_every_problem(raw):
     probs = space_problems(
         raw,

@@ -767,10 +767,8 @@ def node_starts(space, wall, contact_layers, x) -> list[np.ndarray]:
 def held_at_bounds(space, x, names=None, band: float = BOUND_BAND) -> frozenset:
     """The parameters of ``space`` (those in ``names``; default all) whose value in ``x`` [SI] lies within
     ``band`` of its range from a bound of the prior box, in the space's unit coordinates."""
-    u = space.to_unit(np.asarray(x, dtype=float))
-    return frozenset(
-        n for n, v in zip(space.names, u, strict=True) if (names is None or n in names) and (v <= band or v >= 1 - band)
-    )
+    sides = space.bound_sides(x, band)
+    return frozenset(n for n, side in zip(space.names, sides, strict=True) if side and (names is None or n in names))
 
 
 def debiased_residuals(ev, X, bias_sd, noise) -> np.ndarray:

@@ -83,7 +83,8 @@ class CalibrationResult:
     # ------------------------------------------------------------------ reporting
     def parameter_table(self) -> pd.DataFrame:
         rows = []
-        for p, xb, xo in zip(self.space.parameters, self.x_base, self.x_opt, strict=True):
+        sides = self.space.bound_sides(self.x_opt)
+        for p, xb, xo, side in zip(self.space.parameters, self.x_base, self.x_opt, sides, strict=True):
             rows.append(
                 {
                     "parameter": p.name,
@@ -92,10 +93,7 @@ class CalibrationResult:
                     "upper": p.upper,
                     "optimum": xo,
                     "change": (xo - xb) / xb if xb else np.nan,
-                    "at_bound": bool(
-                        np.isclose(xo, p.lower, rtol=0, atol=1e-6 * p.span)
-                        or np.isclose(xo, p.upper, rtol=0, atol=1e-6 * p.span)
-                    ),
+                    "at_bound": bool(side),
                 }
             )
         return pd.DataFrame(rows).set_index("parameter")
@@ -340,12 +338,7 @@ def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, re
                 "it against the other targets"
             )
     x_base = space.base
-    at_bound = []
-    for p, xo in zip(space.parameters, x_opt, strict=True):
-        if np.isclose(xo, p.lower, atol=1e-6 * p.span, rtol=0):
-            at_bound.append(f"{p.name} (lower)")
-        elif np.isclose(xo, p.upper, atol=1e-6 * p.span, rtol=0):
-            at_bound.append(f"{p.name} (upper)")
+    at_bound = [f"{n} ({side})" for n, side in zip(space.names, space.bound_sides(x_opt), strict=True) if side]
     if at_bound:
         notes.append(
             f"{len(at_bound)} of {space.n} parameters ended at a bound: {', '.join(at_bound)}. The data "

@@ -132,6 +132,12 @@ class ParameterSpace:
     def from_unit(self, u: np.ndarray) -> np.ndarray:
         return self.lower + np.asarray(u) * (self.upper - self.lower)
 
+    def bound_sides(self, x: np.ndarray, band: float = 1e-6) -> list[str]:
+        """Per parameter, ``"lower"`` or ``"upper"`` when its value in ``x`` [SI] lies within ``band`` of its
+        range from that bound of the box (in unit coordinates), else ``""``."""
+        u = self.to_unit(np.asarray(x, dtype=float))
+        return ["lower" if v <= band else "upper" if v >= 1 - band else "" for v in u]
+
     @property
     def contact_layers(self) -> frozenset[int]:
         """Layers whose contact resistance is a parameter (the grid needs a contact link there)."""
