@@ -352,7 +352,13 @@ def totals(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def speed(
-    workdir: Path, walkers: int | None, steps: int | None, space: str, campaign: str = "all", sampler: str = "emcee"
+    workdir: Path,
+    walkers: int | None,
+    steps: int | None,
+    space: str,
+    campaign: str = "all",
+    sampler: str = "emcee",
+    seed: int = 1,
 ) -> None:
     """Time the posterior of a 22-parameter space on a campaign (default ``all``; starting at its calibrated optimum):
     ``lambdaT`` (the study's 18 + a probe depth, a contact resistance, two lambda(T) coefficients: every
@@ -377,18 +383,30 @@ def speed(
     )
     t = time.perf_counter()
     r = posterior(
-        study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=steps, progress=False, sampler=sampler
+        study,
+        x_start=cal.x_opt,
+        prepared=prep,
+        walkers=walkers,
+        steps=steps,
+        progress=False,
+        sampler=sampler,
+        seed=seed,
     )
     dt = time.perf_counter() - t
+    moves = (
+        f"acceptance {r.acceptance:.2f}"
+        if sampler == "emcee"
+        else f"{r.sampler['evaluations_per_walker_step']:.1f} evaluations per walker and step"
+    )
     kind = "lambda(T) walls: the engine's general path" if space == "lambdaT" else "linear walls: the modal path"
     ess = effective_samples(r)
     ok = "OK" if dt <= 120 and r.adequate else "SLOW" if r.adequate else "NOT ADEQUATE"
     print(
         f"posterior of a {r.space.n}-parameter space ({kind}; campaign {campaign}): "
-        f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps = {r.evaluations} proposals, {r.simulations} "
-        f"simulated (the rest outside the prior box) in {dt:.1f} s ({r.evaluations / dt:.0f} proposals/s, "
-        f"{r.simulations / dt:.0f} simulations/s) -> {ok} (target: adequate in 120 s); acceptance "
-        f"{r.acceptance:.2f}, autocorrelation time {np.nanmax(r.tau):.0f} steps, burn-in {r.burn}, {ess:.0f} "
+        f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps, {r.simulations} simulated (proposals or slice "
+        f"points inside the prior box) in {dt:.1f} s ({r.evaluations / dt:.0f} walker steps/s, "
+        f"{r.simulations / dt:.0f} simulations/s) -> {ok} (target: adequate in 120 s); sampler {sampler}, "
+        f"{moves}, autocorrelation time {np.nanmax(r.tau):.0f} steps, burn-in {r.burn}, {ess:.0f} "
         f"effective samples ({ess / dt:.1f}/s), chain {'adequate' if r.adequate else 'NOT adequate'}"
     )
     print(r.report())
@@ -415,6 +433,7 @@ def main() -> None:
     ap.add_argument("--speed", action="store_true", help="only time the 22-parameter posterior")
     ap.add_argument("--speed-steps", type=int, help="default the posterior's (until the chain is adequate)")
     ap.add_argument("--speed-walkers", type=int, help="default the posterior's (4 n)")
+    ap.add_argument("--speed-seed", type=int, default=1, help="the timed posterior's seed")
     ap.add_argument("--speed-space", choices=("lambdaT", "linear"), default="lambdaT")
     ap.add_argument(
         "--speed-campaign",
@@ -429,7 +448,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(args.workdir or tmp)
         if args.speed:
-            speed(workdir, args.speed_walkers, args.speed_steps, args.speed_space, args.speed_campaign, args.sampler)
+            speed(
+                workdir,
+                args.speed_walkers,
+                args.speed_steps,
+                args.speed_space,
+                args.speed_campaign,
+                args.sampler,
+                args.speed_seed,
+            )
             return
         print(
             f"settings: {args.walkers or '4 n'} walkers x {args.steps or 'until adequate'} steps per posterior, "

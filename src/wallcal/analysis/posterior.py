@@ -608,7 +608,8 @@ class PosteriorResult:
     def report(self) -> str:
         lines = [
             f"posterior ({self.status}): {self.chain.shape[1]} walkers x {self.chain.shape[0]} steps = "
-            f"{self.evaluations} proposals{self._simulated()} in {self.seconds:.1f} s; burn-in {self.burn}, "
+            f"{self.evaluations} {'walker steps' if self._slice() else 'proposals'}{self._simulated()} in "
+            f"{self.seconds:.1f} s; burn-in {self.burn}, "
             f"thin {self.thin}, "
             f"{len(self.samples)} samples",
             f"error model AR(1) per target + constant sensor bias integrated out, sigma {self.sigma_kind}: "
@@ -652,16 +653,25 @@ class PosteriorResult:
 
     def _moves_text(self) -> str:
         s = self.sampler
-        if s.get("kind", "emcee") == "emcee":
+        if not self._slice():
             return f"emcee, acceptance fraction {self.acceptance:.2f}"
         return (
             f"ensemble slice sampling ({s['kind']}), {s.get('evaluations_per_walker_step', nan):.1f} evaluations per "
             f"walker and step, scale mu {s.get('mu', nan):.3g}"
         )
 
+    def _slice(self) -> bool:
+        return self.sampler.get("kind", "emcee") != "emcee"
+
     def _simulated(self) -> str:
         if self.simulations is None:
             return ""
+        if self._slice():
+            asked = self.sampler.get("evaluations_per_walker_step", nan) * self.evaluations
+            return (
+                f" ({asked:.0f} log-probabilities asked for by the slices, {self.simulations} of them simulated; the "
+                "others fell outside the prior box and cost no simulation)"
+            )
         return f" ({self.simulations} simulated; the others fell outside the prior box and cost no simulation)"
 
     def tempering_line(self) -> str:
