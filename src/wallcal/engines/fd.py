@@ -44,8 +44,9 @@ Scheme details
   conductances, temperature coefficients and the validity check; :func:`wallcal.engines.operator.link_thetas`)
   and the batch kernel; everything that depends only on the boundary data, output times or batch size
   (theta-weighted inputs, the modal output plan, probe weights at the prepared wall's depths, empty arrays)
-  is computed once per :class:`PreparedFD`. No BLAS or LAPACK is called inside the kernels, so their
-  threads cannot oversubscribe ours.
+  is computed once per :class:`PreparedFD`. The modal kernel calls two LAPACK routines on arrays of a few
+  dozen nodes (:mod:`wallcal.engines.modal`), which run in the calling thread: no threads of their own
+  oversubscribe ours.
 """
 
 from __future__ import annotations
@@ -415,7 +416,7 @@ class PreparedFD:
                 idx = np.flatnonzero([k == key for k in keys])
                 out[idx], tend[idx] = self._modal_group(per_candidate, idx, self._output_plan(key), want_k)
         if not np.isfinite(tend).all():
-            raise EngineError("the tridiagonal eigensolver (QL) did not converge; use path='general'")
+            raise EngineError("the modal eigen-decomposition failed (LAPACK's reduction or the QL); use path='general'")
         if n_d:
             inner = out[:, npr + 2 :: 2] + out[:, npr + 3 :: 2] + self._known_node_terms(dws, n_nodes)
             out = self._with_depth_rows(out[:, : npr + 2], inner)

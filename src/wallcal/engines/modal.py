@@ -13,12 +13,11 @@ recursion
 
     z_k^{n+1} = mu_k z_k^n + r_k . s^n,   z = V^T M T,   r = V^T p,
 
-which is the same linear algebra as the tridiagonal solve (results agree to round-off). With one
-theta on every term and heat capacity at every node (the usual case), ``M`` and ``N`` are functions
-of ``Cap^-1 K``: ``K v = lambda Cap v`` gives ``mu_k = (1/dt - (1 - theta) lambda_k) / (1/dt + theta lambda_k)``
-from a tridiagonal eigenproblem (step 2 below); otherwise (theta raised by the theta rule, nodes
-without capacity) ``A = L^-1 N L^-T`` with ``M = L L^T`` is reduced to tridiagonal form by
-Householder reflections first (step 2'). The kernel runs the recursion on the state scaled by the
+which is the same linear algebra as the tridiagonal solve (results agree to round-off). Since
+``M - N = K`` (the weights of each term add up to one), ``N v = mu M v`` is ``K v = nu M v`` with
+``mu = 1 - nu``: one symmetric-definite pencil of two tridiagonal matrices for every candidate, whatever
+its thetas (theta raised by the theta rule, nodes without capacity), and ``1 - mu = nu`` comes without the
+cancellation of slow modes (``mu`` close to 1). The kernel runs the recursion on the state scaled by the
 interior coupling, ``y_k = z_k / r_{k,i}``, so that the interior input enters unscaled:
 ``y <- mu y + (alpha s_e + s_i)``, two multiply-adds per mode and step. The modes
 are independent, so the loop over them vectorises, and the state stays in
@@ -45,16 +44,16 @@ Per candidate (everything inside the numba batch loop; a batch is split over thr
 
 1. ``K``, ``p`` and the output rows are assembled from the node capacities, the
    link conductances and the probe interpolation weights (no Python per candidate).
-2. ``S = Cap^-1/2 K Cap^-1/2`` is symmetric *tridiagonal*. Its eigenvalues come
-   from implicit QL with Wilkinson shifts (:func:`tridiag_ql`); the plane
-   rotations are applied only to a few columns (the couplings ``p_e``, ``p_i``, the
-   output rows and the initial state, scaled by ``Cap^-1/2``, resp. ``Cap^1/2``), which
-   gives them in modal coordinates, ``V^T x = W^T Cap^-1/2 x``, and recorded, so that the
-   final state can be mapped back. O(m^2) instead of the O(m^3) of a dense ``eigh``, and
-   no LAPACK/BLAS call (no threads of its own inside ours).
-2'. Otherwise: ``M = L L^T`` (bidiagonal ``L``), ``A = L^-1 N L^-T`` (dense), Householder
-   reduction ``A = Q T Q^T`` (:func:`_householder`, O(m^3)), the same QL on ``T``; the same
-   columns are mapped as ``V^T x = W^T Q^T L^-1 x`` (the initial state as ``W^T Q^T L^T T``).
+2. LAPACK reduces the pencil to a standard problem of the same bandwidth (:mod:`wallcal.engines.lapack`:
+   ``dpbstf``, the split Cholesky factor of ``M``, and ``dsbgst``): ``C = X^T K X`` tridiagonal with
+   ``X^T M X = I``, O(m^2). The eigenvalues ``nu`` of ``C`` come from implicit QL with Wilkinson shifts
+   (:func:`tridiag_ql`); its plane rotations are applied only to a few columns (the couplings ``p_e``,
+   ``p_i``, the requested output rows and the initial state, mapped by ``X^T`` first), which gives them in
+   modal coordinates, ``V^T x = W^T X^T x`` (the initial state as ``W^T X^T M T``), and recorded, so that
+   the final state can be mapped back (``T = X W z``). O(m^2) instead of the O(m^3) of a dense ``eigh``;
+   LAPACK's own eigensolvers with eigenvectors (``dstevr``: MRRR) took about twice as long as this QL on
+   these matrices. The LAPACK routines called here use only level-1 and level-2 BLAS on arrays this small,
+   which OpenBLAS runs in the calling thread (no threads inside ours).
 3. The output-pattern coefficients (:func:`_pattern_coefficients`), then one pass
    over the steps (:func:`_recursion`): between two anchors five steps apart (5-minute
    data at 1-minute steps), one loop over the modes forms the anchor's output rows and
@@ -71,7 +70,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from . import boundary, operator
+from . import boundary, lapack, operator
 
 #: columns of the per-output input features (see :func:`output_plan`)
 N_FEAT = 6
@@ -187,98 +186,6 @@ def apply_w(nrot, rot_i, rot_cs, x):
         b = x[i + 1]
         x[i] = c * a + s * b
         x[i + 1] = c * b - s * a
-
-
-@_inner()
-def _householder(a, beta):
-    """Reduce the symmetric ``a`` (m, m; its lower triangle is read) to tridiagonal form in place,
-    ``a = Q T Q^T``, from the last row up (EISPACK's tred2 order): step k (k = m - 1 .. 2) reflects the
-    leading block ``0 .. k - 1`` so that row k of it keeps only its off-diagonal. On return ``a[k, k]``
-    and ``a[k, k + 1]`` hold T's diagonal and off-diagonal, row ``k`` left of column k the Householder
-    vector ``v_k`` (acting on indices ``0 .. k - 1``) and ``beta[k]`` its factor
-    (``H_k = I - beta_k v_k v_k^T``, ``Q = H_{m-1} ... H_2``). O(m^3); the block is kept in both
-    triangles and every inner loop runs along a row from its start (LLVM vectorises them)."""
-    m = a.shape[0]
-    for i in range(m):
-        for j in range(i):
-            a[j, i] = a[i, j]
-    p = np.empty(m)
-    for k in range(m - 1, 1, -1):
-        alpha = 0.0
-        for j in range(k):
-            alpha += a[k, j] * a[k, j]
-        alpha = np.sqrt(alpha)
-        if a[k, k - 1] > 0.0:
-            alpha = -alpha
-        a[k - 1, k] = alpha  # T's off-diagonal (the block's upper part of column k is not read again)
-        a[k, k - 1] -= alpha  # v = x - alpha e_{k-1}, in row k (which holds x)
-        vv = 0.0
-        for j in range(k):
-            vv += a[k, j] * a[k, j]
-        if vv == 0.0:  # the row is already reduced
-            beta[k] = 0.0
-            continue
-        b = 2.0 / vv
-        beta[k] = b
-        # B <- H B H on the leading block: p = b B v, w = p - (b/2)(v.p) v, B -= v w^T + w v^T
-        for i in range(k):
-            p[i] = 0.0
-        for j in range(k):  # B v as a sum of B's rows (B is symmetric)
-            vj = a[k, j]
-            for i in range(k):
-                p[i] += a[j, i] * vj
-        vp = 0.0
-        for i in range(k):
-            p[i] *= b
-            vp += a[k, i] * p[i]
-        hk = 0.5 * b * vp
-        for i in range(k):
-            p[i] -= hk * a[k, i]
-        for i in range(k):
-            vi = a[k, i]
-            pi = p[i]
-            for j in range(k):
-                a[i, j] -= vi * p[j] + pi * a[k, j]
-
-
-@_inner()
-def _apply_q(a, beta, y, transposed):
-    """Y <- Q Y, or Q^T Y (node-like coordinates to those of the tridiagonal T) when ``transposed``,
-    for every column of ``y`` at once; Q from :func:`_householder` (each reflection
-    H_k = I - beta_k v_k v_k^T is symmetric: Q^T applies them in the opposite order). (Call it with a
-    runtime bool, e.g. ``np.bool_(True)``: a literal would compile one copy per value.)"""
-    m = a.shape[0]
-    n = y.shape[1]
-    s = np.empty(n)
-    for step in range(m - 2):
-        k = m - 1 - step if transposed else step + 2
-        b = beta[k]
-        if b == 0.0:
-            continue
-        for c in range(n):
-            s[c] = 0.0
-        for i in range(k):
-            vi = a[k, i]
-            for c in range(n):
-                s[c] += vi * y[i, c]
-        for c in range(n):
-            s[c] *= b
-        for i in range(k):
-            vi = a[k, i]
-            for c in range(n):
-                y[i, c] -= s[c] * vi
-
-
-@_inner()
-def _lower_solve_rows(ld, lo, y):
-    """Y <- L^-1 Y, row by row (every column at once), for the lower bidiagonal L (diagonal ld,
-    subdiagonal lo)."""
-    m, n = y.shape
-    for j in range(n):
-        y[0, j] /= ld[0]
-    for i in range(1, m):
-        for j in range(n):
-            y[i, j] = (y[i, j] - lo[i - 1] * y[i - 1, j]) / ld[i]
 
 
 def input_thetas(theta, bc_theta, bc_type):
@@ -648,10 +555,20 @@ def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_s
         k_out = k2
 
 
+def modal_batch(*args):
+    """Run every candidate through its modal recursion: :func:`modal_kernel` (its arguments), once the LAPACK
+    routines it calls are linked (:func:`wallcal.engines.lapack.link`)."""
+    lapack.link()
+    return modal_kernel(*args)
+
+
 @njit(cache=True, nogil=True)
-def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s):
+def modal_kernel(
+    caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s
+):
     """Run every candidate through its modal recursion (see module docstring). Releases the GIL: a
-    caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`).
+    caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`). Call it through
+    :func:`modal_batch` (which links the LAPACK routines it calls).
 
     Parameters (c = candidate, j = node, l = link, p = probe, k = output time)
     ----------
@@ -671,11 +588,23 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
 
     Returns out (c, p + 2 + 2 d, k) and the final node temperatures (c, j) (known face nodes included).
     ``want`` (p + 2 + 2 d,) bool: the output rows to form (others are left NaN); fewer rows need fewer
-    eigenvector components and less work per output time. (One function with the candidate loop
-    around the body: each level of njit calls re-optimises its callees, so a wrapper costs compile time.)
+    eigenvector components and less work per output time. A candidate whose pencil LAPACK cannot reduce
+    or whose QL does not converge gets NaN outputs. (One function with the candidate loop around the
+    body: each level of njit calls re-optimises its callees, so a wrapper costs compile time.)
     """
     outs = np.empty((caps.shape[0], pas.shape[1] + 2 + 2 * dl.shape[0], plan[0].shape[0]))  # plan[0]: the anchors
     tends = np.empty(caps.shape)
+    # LAPACK's scalar arguments (Fortran: by reference): n, 1 (ka = kb = 1), 2 (ldab = ldbb), info
+    iargs = np.empty(4, dtype=np.int32)
+    iargs[1] = 1
+    iargs[2] = 2
+    n_arg = iargs[0:]
+    one_arg = iargs[1:]
+    two_arg = iargs[2:]
+    info = iargs[3:]
+    chars = np.empty(2, dtype=np.uint8)
+    chars[0] = 86  # "V": form X
+    chars[1] = 76  # "L": band storage of the lower triangle
     for cand in range(caps.shape[0]):
         cap = caps[cand]
         g = gs[cand]
@@ -701,9 +630,6 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
         for q in range(n_q):
             if want[q]:
                 n_rq += 1
-            else:
-                for i in range(m):
-                    G_nodes[q, i] = 0.0
         rq = np.empty(n_rq, dtype=np.int64)
         fq = np.empty(N_FUSED, dtype=np.int64)  # fused rows, padded with the zero row n_q
         fq[:] = n_q
@@ -716,15 +642,6 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
                 n_rq += 1
             else:
                 out[q, :] = np.nan
-        uniform = True  # one theta on every term and heat capacity at every unknown node
-        for lnk in range(thetas.shape[1]):
-            if thetas[cand, lnk] != theta:
-                uniform = False
-        if bc_thetas[cand, 0] != theta or bc_thetas[cand, 1] != theta:
-            uniform = False
-        for i in range(m):
-            if not cap[j0 + i] > 0.0:
-                uniform = False
         has_t0 = t0.shape[0] == n_nodes
         # (work arrays by np.empty in a few shapes only: each other numpy call compiles numpy's code)
         mu = np.empty(m)
@@ -734,106 +651,81 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
         G = np.empty((n_q, m))  # output rows in modal coordinates
         rot_i = np.empty(2 * m * m, dtype=np.int64)
         rot_cs = np.empty((2 * m * m, 2))
-        dinv = np.empty(m)  # uniform: Cap^-1/2 (1 otherwise)
-        ld = np.empty(m)  # otherwise: M = L L^T and the Householder vectors of A (see below)
-        lo = np.empty(m)
-        a = np.empty((0, 0))
-        beta = np.empty(m)
-        # a symmetric tridiagonal eigenproblem (d, ee) and the columns zt that its QL rotations map to
-        # modal coordinates: V^T x = W^T B^-1 x for the couplings p_e, p_i and the output rows, then
-        # (with an initial state) V^T M T = W^T B^T T; uniform: B = Cap^1/2, otherwise B = L Q
+        # The step M T^{n+1} = N T^n + p s^n, M = Cap/dt + K_theta, N = Cap/dt - K_{1-theta} = M - K (both
+        # symmetric tridiagonal, M positive definite): K v = nu M v with V^T M V = I diagonalises it with
+        # mu = 1 - nu (and 1 - mu = nu without cancellation for slow modes). LAPACK reduces the pencil to
+        # C = X^T K X (tridiagonal) with X^T M X = I (split Cholesky factor of M and plane rotations:
+        # dpbstf, dsbgst; O(m^2)); the QL of C gives C = W diag(nu) W^T, so V = X W.
+        md = np.empty(m)
+        mo = np.empty(m)
+        operator.assemble_operator(g, thetas[cand], bc_type, bc_h, bc_thetas[cand], j0, m, md, mo)
+        ab = np.empty((m, 2))  # K, then C (Fortran band storage (2, m): diagonal, subdiagonal)
+        bb = np.empty((m, 2))  # M, then its split Cholesky factor
+        for i in range(m):
+            md[i] += cap[j0 + i] / dt
+            ab[i, 0] = kd[i]
+            ab[i, 1] = ko[i]
+            bb[i, 0] = md[i]
+            bb[i, 1] = mo[i]
+        x = np.empty((m, m))  # X^T (C order): x[k] is column k of X
+        work = np.empty(2 * m)
+        n_arg[0] = m
+        info[0] = 0
+        lapack.dpbstf(chars[1:].ctypes, n_arg.ctypes, one_arg.ctypes, bb.ctypes, two_arg.ctypes, info.ctypes)
+        if info[0] == 0:
+            lapack.dsbgst(
+                chars[0:].ctypes, chars[1:].ctypes, n_arg.ctypes, one_arg.ctypes, one_arg.ctypes, ab.ctypes,
+                two_arg.ctypes, bb.ctypes, two_arg.ctypes, x.ctypes, n_arg.ctypes, work.ctypes, info.ctypes,
+            )  # fmt: skip
+        if info[0] != 0:
+            out[:, :] = np.nan
+            tend[:] = np.nan
+            continue
+        # the tridiagonal eigenproblem of C (d, ee) and the columns zt its QL rotations map to modal
+        # coordinates: V^T x = W^T X^T x for the couplings p_e, p_i and the requested output rows, then
+        # (with an initial state) z = V^T M T = W^T X^T M T
         d = np.empty(m)
         ee = np.empty(m)
+        for i in range(m):
+            d[i] = ab[i, 0]
+            ee[i] = ab[i, 1]
         ncol = 3 + n_q if has_t0 else 2 + n_q
         zt = np.empty((m, ncol))
-        for i in range(m):
-            for c in range(ncol):
-                zt[i, c] = 0.0
-        zt[0, 0] = pe
-        zt[m - 1, 1] = pi
-        for q in range(n_q):
+        mt = np.empty(m)  # M T (unknowns)
+        if has_t0:
             for i in range(m):
-                zt[i, 2 + q] = G_nodes[q, i]
-        if uniform:
-            # K v = lambda Cap v: S = Cap^-1/2 K Cap^-1/2 (tridiagonal), V = Cap^-1/2 W
-            for i in range(m):
-                dinv[i] = 1.0 / np.sqrt(cap[j0 + i])
-            for i in range(m):
-                d[i] = kd[i] * dinv[i] * dinv[i]
-            for i in range(m - 1):
-                ee[i] = ko[i] * dinv[i] * dinv[i + 1]
-            for i in range(m):
-                for c in range(2 + n_q):
-                    zt[i, c] *= dinv[i]
-                if has_t0:
-                    zt[i, ncol - 1] = t0[j0 + i] / dinv[i]
-        else:
-            # per-term theta or nodes without capacity: the step M T^{n+1} = N T^n + p s^n with
-            # M = Cap/dt + K_theta, N = Cap/dt - K_{1-theta} (both symmetric tridiagonal, M positive
-            # definite) is diagonalised by N v = mu M v, V^T M V = I: with M = L L^T (L bidiagonal),
-            # A = L^-1 N L^-T = Q T Q^T (Householder), T = W diag(mu) W^T (QL), V = L^-T Q W.
-            thc = thetas[cand]
-            wbc = bc_thetas[cand]
-            md = np.empty(m)
-            mo = np.empty(m)
-            nd = np.empty(m)
-            no = np.empty(m)
-            operator.assemble_operator(g, thc, bc_type, bc_h, wbc, j0, m, md, mo)
-            operator.assemble_operator(g, 1.0 - thc, bc_type, bc_h, 1.0 - wbc, j0, m, nd, no)
-            for i in range(m):
-                ci_dt = cap[j0 + i] / dt
-                md[i] += ci_dt
-                nd[i] = ci_dt - nd[i]
-                dinv[i] = 1.0
-            ld[0] = np.sqrt(md[0])
-            for i in range(1, m):
-                lo[i - 1] = mo[i - 1] / ld[i - 1]
-                ld[i] = np.sqrt(md[i] - lo[i - 1] * lo[i - 1])
-            lo[m - 1] = 0.0
-            y_n = np.empty((m, m))  # N, then Y = L^-1 N; A = L^-1 Y^T (= A^T)
-            for i in range(m):
-                for j in range(m):
-                    y_n[i, j] = 0.0
-            for i in range(m):
-                y_n[i, i] = nd[i]
+                mt[i] = md[i] * t0[j0 + i]
+                if i > 0:
+                    mt[i] += mo[i - 1] * t0[j0 + i - 1]
                 if i + 1 < m:
-                    y_n[i, i + 1] = -no[i]
-                    y_n[i + 1, i] = -no[i]
-            _lower_solve_rows(ld, lo, y_n)
-            a = np.empty((m, m))
-            for i in range(m):
-                for j in range(m):
-                    a[i, j] = y_n[j, i]
-            _lower_solve_rows(ld, lo, a)
-            _householder(a, beta)
-            for i in range(m):
-                d[i] = a[i, i]
-                if i + 1 < m:
-                    ee[i] = a[i, i + 1]
-            _lower_solve_rows(ld, lo, zt)  # (the state column is still zero)
+                    mt[i] += mo[i] * t0[j0 + i + 1]
+        for k in range(m):
+            xrow = x[k]
+            zt[k, 0] = xrow[0] * pe
+            zt[k, 1] = xrow[m - 1] * pi
+            for q in range(n_q):
+                acc = 0.0
+                if want[q]:
+                    gq = G_nodes[q]
+                    for i in range(m):
+                        acc += xrow[i] * gq[i]
+                zt[k, 2 + q] = acc
             if has_t0:
+                acc = 0.0
                 for i in range(m):
-                    zt[i, ncol - 1] = ld[i] * t0[j0 + i] + (lo[i] * t0[j0 + i + 1] if i + 1 < m else 0.0)
-            _apply_q(a, beta, zt, np.bool_(True))
+                    acc += xrow[i] * mt[i]
+                zt[k, ncol - 1] = acc
         nrot, rot_i, rot_cs = tridiag_ql(d, ee, zt, rot_i, rot_cs)
         if nrot < 0:
             out[:, :] = np.nan
             tend[:] = np.nan
             continue
         for k in range(m):
-            if uniform:  # d: the eigenvalues lambda of S, mu = (1/dt - (1 - theta) lambda) / (1/dt + theta lambda)
-                den = 1.0 / dt + theta * d[k]
-                mu[k] = (1.0 / dt - (1.0 - theta) * d[k]) / den
-                r0[k] = zt[k, 0] / den
-                r1[k] = zt[k, 1] / den
-                one_mu = d[k] / den  # 1 - mu, without the cancellation for slow modes
-            else:  # d: the eigenvalues mu of A
-                mu[k] = d[k]
-                r0[k] = zt[k, 0]
-                r1[k] = zt[k, 1]
-                one_mu = 1.0 - mu[k]
+            mu[k] = 1.0 - d[k]
+            r0[k] = zt[k, 0]
+            r1[k] = zt[k, 1]
             # steady start: the fixed point of z <- mu z + r u^0 (that of M T = N T + p u^0: K T = p u^0)
-            z[k] = zt[k, ncol - 1] if has_t0 else (r0[k] * ue[0] + r1[k] * ui[0]) / one_mu
+            z[k] = zt[k, ncol - 1] if has_t0 else (r0[k] * ue[0] + r1[k] * ui[0]) / d[k]
             for q in range(n_q):
                 G[q, k] = zt[k, 2 + q]
         # the state scaled by the interior coupling, y = z / r1: the interior input then enters unscaled
@@ -877,20 +769,15 @@ def modal_batch(caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc
         _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw)
         for k in range(m):
             z[k] = rho[k] * y[k]
-        # final temperatures T = V z (uniform: Cap^-1/2 W z; else L^-T Q W z)
+        # final temperatures T = V z = X W z
         apply_w(nrot, rot_i, rot_cs, z)
-        if not uniform:
-            zq = np.empty((m, 1))
-            for i in range(m):
-                zq[i, 0] = z[i]
-            _apply_q(a, beta, zq, np.bool_(False))
-            z[m - 1] = zq[m - 1, 0] / ld[m - 1]
-            for i in range(m - 2, -1, -1):
-                z[i] = (zq[i, 0] - lo[i] * z[i + 1]) / ld[i]
         for i in range(n_nodes):
             tend[i] = 0.0
-        for i in range(m):
-            tend[j0 + i] = dinv[i] * z[i]
+        for k in range(m):
+            xrow = x[k]
+            zk = z[k]
+            for i in range(m):
+                tend[j0 + i] += xrow[i] * zk
         if j0 == 1:
             tend[0] = ue[n_steps]
         if boundary.is_known(bc_type[1]):
