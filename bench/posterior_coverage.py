@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 import wallcal
-from wallcal.analysis.posterior import SAMPLERS, posterior
+from wallcal.analysis.posterior import posterior
 from wallcal.calibration import calibrate
 from wallcal.simulation import BATCH_NEEDS, prepare
 from wallcal.wallfile import dump_wall, load_wall
@@ -228,7 +228,7 @@ def diagnose_or_none():
     return diagnose
 
 
-def sample(study, temperings, steps, walkers, missing=(), label="", start=None, sampler="emcee"):
+def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
     """Calibrate ``study`` (unless a ``start`` {name: value} is given) and sample its posterior with each
     tempering; one row per tempering."""
     prep = prepare(study, needs=BATCH_NEEDS)
@@ -252,7 +252,6 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None, 
             tempering=temp,
             missing_extensions=missing,
             nonunique_candidates=64,
-            sampler=sampler,
         )
         c = r.combination_coverage()
         rows.append(
@@ -298,7 +297,6 @@ def coverage(
     workdir: Path,
     start_at: str = "diagnose",
     without_diagnose: bool = True,
-    sampler: str = "emcee",
 ) -> pd.DataFrame:
     diagnose = diagnose_or_none() if with_diagnose else None
     if with_diagnose and diagnose is None:
@@ -315,14 +313,12 @@ def coverage(
             adopted = list(d.adopted)
             print(f"{name}: diagnose adopted {adopted or 'nothing'} in {time.perf_counter() - t:.0f} s", flush=True)
         if without_diagnose or d is None:
-            for row in sample(
-                study, temperings, steps, walkers, missing=adopted, label="without diagnose", sampler=sampler
-            ):
+            for row in sample(study, temperings, steps, walkers, missing=adopted, label="without diagnose"):
                 rows.append({"campaign": name, **row})
                 _show(rows[-1])
         if d is not None:
             start = d.x if start_at == "diagnose" else None
-            for row in sample(d.study, temperings, steps, walkers, label="with diagnose", start=start, sampler=sampler):
+            for row in sample(d.study, temperings, steps, walkers, label="with diagnose", start=start):
                 rows.append({"campaign": name, "adopted": ", ".join(adopted), **row})
                 _show(rows[-1])
     return pd.DataFrame(rows)
@@ -352,13 +348,7 @@ def totals(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def speed(
-    workdir: Path,
-    walkers: int | None,
-    steps: int | None,
-    space: str,
-    campaign: str = "all",
-    sampler: str = "emcee",
-    seed: int = 1,
+    workdir: Path, walkers: int | None, steps: int | None, space: str, campaign: str = "all", seed: int = 1
 ) -> None:
     """Time the posterior of a 22-parameter space on a campaign (default ``all``; starting at its calibrated optimum):
     ``lambdaT`` (the study's 18 + a probe depth, a contact resistance, two lambda(T) coefficients: every
@@ -371,42 +361,19 @@ def speed(
     study = wallcal.load_study(path)
     prep = prepare(study, needs=BATCH_NEEDS)
     cal = calibrate(study, progress=False, prepared=prep)
-    posterior(
-        study,
-        x_start=cal.x_opt,
-        prepared=prep,
-        walkers=walkers,
-        steps=4,
-        progress=False,
-        tempering="none",
-        sampler=sampler,
-    )
+    posterior(study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=4, progress=False, tempering="none")
     t = time.perf_counter()
-    r = posterior(
-        study,
-        x_start=cal.x_opt,
-        prepared=prep,
-        walkers=walkers,
-        steps=steps,
-        progress=False,
-        sampler=sampler,
-        seed=seed,
-    )
+    r = posterior(study, x_start=cal.x_opt, prepared=prep, walkers=walkers, steps=steps, progress=False, seed=seed)
     dt = time.perf_counter() - t
-    moves = (
-        f"acceptance {r.acceptance:.2f}"
-        if sampler == "emcee"
-        else f"{r.sampler['evaluations_per_walker_step']:.1f} evaluations per walker and step"
-    )
     kind = "lambda(T) walls: the engine's general path" if space == "lambdaT" else "linear walls: the modal path"
     ess = effective_samples(r)
     ok = "OK" if dt <= 120 and r.adequate else "SLOW" if r.adequate else "NOT ADEQUATE"
     print(
         f"posterior of a {r.space.n}-parameter space ({kind}; campaign {campaign}): "
-        f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps, {r.simulations} simulated (proposals or slice "
-        f"points inside the prior box) in {dt:.1f} s ({r.evaluations / dt:.0f} walker steps/s, "
-        f"{r.simulations / dt:.0f} simulations/s) -> {ok} (target: adequate in 120 s); sampler {sampler}, "
-        f"{moves}, autocorrelation time {np.nanmax(r.tau):.0f} steps, burn-in {r.burn}, {ess:.0f} "
+        f"{r.chain.shape[1]} walkers x {r.chain.shape[0]} steps = {r.evaluations} proposals, {r.simulations} "
+        f"simulated (the rest outside the prior box) in {dt:.1f} s ({r.evaluations / dt:.0f} proposals/s, "
+        f"{r.simulations / dt:.0f} simulations/s) -> {ok} (target: adequate in 120 s); seed {seed}, acceptance "
+        f"{r.acceptance:.2f}, autocorrelation time {np.nanmax(r.tau):.0f} steps, burn-in {r.burn}, {ess:.0f} "
         f"effective samples ({ess / dt:.1f}/s), chain {'adequate' if r.adequate else 'NOT adequate'}"
     )
     print(r.report())
@@ -441,22 +408,14 @@ def main() -> None:
         default="all",
         help="the campaign whose posterior --speed times (all: its structure is not the space's)",
     )
-    ap.add_argument("--sampler", choices=SAMPLERS, default="emcee", help="the posterior's ensemble sampler")
     ap.add_argument("--workdir", help="keep the synthetic campaigns here (default: a temporary folder)")
     ap.add_argument("--csv", help="write the per-campaign rows here")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(args.workdir or tmp)
         if args.speed:
-            speed(
-                workdir,
-                args.speed_walkers,
-                args.speed_steps,
-                args.speed_space,
-                args.speed_campaign,
-                args.sampler,
-                args.speed_seed,
-            )
+            args_ = (args.speed_walkers, args.speed_steps, args.speed_space, args.speed_campaign, args.speed_seed)
+            speed(workdir, *args_)
             return
         print(
             f"settings: {args.walkers or '4 n'} walkers x {args.steps or 'until adequate'} steps per posterior, "
@@ -473,7 +432,6 @@ def main() -> None:
             workdir,
             args.start,
             without_diagnose=not args.no_without,
-            sampler=args.sampler,
         )
         if args.csv:
             df.to_csv(args.csv, index=False)

@@ -550,10 +550,6 @@ class PosteriorResult:
     adequate : bool
         Whether the chain is adequate (:func:`chain_diagnostics`): ``target_effective_samples`` effective samples,
         long enough for its autocorrelation time and that time no longer growing with the chain.
-    sampler : dict
-        ``kind`` (one of :data:`SAMPLERS`); for the slice samplers also ``mu`` (the tuned scale of the directions)
-        and ``evaluations_per_walker_step`` (log-probabilities asked for, inside the prior box or not, per walker
-        and step of this run).
     """
 
     study: object
@@ -584,7 +580,6 @@ class PosteriorResult:
     adequate: bool = False
     target_effective_samples: float = DEFAULT_EFFECTIVE_SAMPLES
     simulations: int | None = None
-    sampler: dict = field(default_factory=lambda: {"kind": "emcee"})
 
     def coverage(self) -> tuple[int, int]:
         """(identified parameters whose 95 % interval holds the truth, identified parameters with a truth)."""
@@ -608,8 +603,7 @@ class PosteriorResult:
     def report(self) -> str:
         lines = [
             f"posterior ({self.status}): {self.chain.shape[1]} walkers x {self.chain.shape[0]} steps = "
-            f"{self.evaluations} {'walker steps' if self._slice() else 'proposals'}{self._simulated()} in "
-            f"{self.seconds:.1f} s; burn-in {self.burn}, "
+            f"{self.evaluations} proposals{self._simulated()} in {self.seconds:.1f} s; burn-in {self.burn}, "
             f"thin {self.thin}, "
             f"{len(self.samples)} samples",
             f"error model AR(1) per target + constant sensor bias integrated out, sigma {self.sigma_kind}: "
@@ -618,8 +612,7 @@ class PosteriorResult:
                 f"{(1 - self.phi[k]) / (1 + self.phi[k]):.3f})"
                 for k in self.sigma
             ),
-            self._moves_text()
-            + "; integrated autocorrelation time "
+            f"acceptance fraction {self.acceptance:.2f}; integrated autocorrelation time "
             + (
                 f"{np.nanmin(self.tau):.0f}..{np.nanmax(self.tau):.0f} steps"
                 if np.isfinite(self.tau).any()
@@ -651,27 +644,9 @@ class PosteriorResult:
             )
         return "\n".join(lines)
 
-    def _moves_text(self) -> str:
-        s = self.sampler
-        if not self._slice():
-            return f"emcee, acceptance fraction {self.acceptance:.2f}"
-        return (
-            f"ensemble slice sampling ({s['kind']}), {s.get('evaluations_per_walker_step', nan):.1f} evaluations per "
-            f"walker and step, scale mu {s.get('mu', nan):.3g}"
-        )
-
-    def _slice(self) -> bool:
-        return self.sampler.get("kind", "emcee") != "emcee"
-
     def _simulated(self) -> str:
         if self.simulations is None:
             return ""
-        if self._slice():
-            asked = self.sampler.get("evaluations_per_walker_step", nan) * self.evaluations
-            return (
-                f" ({asked:.0f} log-probabilities asked for by the slices, {self.simulations} of them simulated; the "
-                "others fell outside the prior box and cost no simulation)"
-            )
         return f" ({self.simulations} simulated; the others fell outside the prior box and cost no simulation)"
 
     def tempering_line(self) -> str:
@@ -695,7 +670,6 @@ class PosteriorResult:
             "burn": self.burn,
             "thin": self.thin,
             "acceptance_fraction": self.acceptance,
-            "sampler": self.sampler,
             "tau": dict(zip(self.space.names, self.tau.tolist(), strict=True)),
             "effective_samples": self.effective_samples,
             "target_effective_samples": self.target_effective_samples,
@@ -904,7 +878,6 @@ def posterior(
     missing_extensions=(),
     effective_samples: float | None = None,
     max_steps: int | None = None,
-    sampler: str = "emcee",
 ) -> PosteriorResult:
     """Sample the posterior of the calibration parameters.
 
@@ -962,10 +935,7 @@ def posterior(
     from . import reference_values, space_with_targets
     from .identifiability import sensor_sigma
 
-    if sampler not in SAMPLERS:
-        raise WallcalError(f"sampler: {sampler!r} is not one of {', '.join(map(repr, SAMPLERS))}")
-    if sampler == "emcee":
-        require("emcee", "analysis")  # a clear error when the analysis extra is missing
+    require("emcee", "analysis")  # a clear error when the analysis extra is missing
     space = space_with_targets(study, parse_space(study), targets)
     x_start = space.base if x_start is None else np.asarray(x_start, dtype=float)
     prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the posterior sampling")
@@ -1010,7 +980,6 @@ def posterior(
         "walkers": nw,
         "study_sha256": study.sha256,
         "tempering": temp,
-        "sampler": sampler,
     }
     rng = np.random.default_rng(seed)
     prev_chain = np.zeros((0, nw, n))
@@ -1020,8 +989,7 @@ def posterior(
             raise WallcalError(f"nothing to resume: no checkpoint {ckpt} (run without --resume)")
         data = np.load(ckpt)
         old = json.loads(str(data["meta"]))
-        old.setdefault("sampler", "emcee")  # checkpoints made before the sampler could be chosen
-        for key in ("names", "targets", "walkers", "study_sha256", "sampler"):
+        for key in ("names", "targets", "walkers", "study_sha256"):
             if old.get(key) != meta[key]:
                 raise WallcalError(f"{ckpt}: made with another {key}; run without --resume")
         prev_chain, prev_lp = data["chain"], data["log_prob"]
@@ -1035,27 +1003,18 @@ def posterior(
             weight=temp["weight"],
         )
         meta.update(sigma=sig, phi=ph, tempering=temp)
-        if "mu" in old:
-            meta["mu"] = old["mu"]
         p0 = prev_chain[-1]
         steps = max(0, steps - len(prev_chain))
     else:
         p0 = initial_walkers(space, x_start, nw, rng, lin.information, temp["weight"])
     coords = LogCoordinates(like, space)
-    sampler = ensemble_sampler(coords, nw, n, seed, kind=meta["sampler"], mu=meta.get("mu"))
+    sampler = ensemble_sampler(coords, nw, n, seed)
 
     def unit_chain():
         z = sampler.get_chain()
         return coords.to_unit(z.reshape(-1, n)).reshape(z.shape)
 
-    slice_ = meta["sampler"].startswith("slice")
-
-    def moves() -> str:
-        if slice_:
-            return f"{sampler.evaluations / max(1, done * nw):.1f} evaluations per walker and step"
-        return f"acceptance {np.mean(sampler.acceptance_fraction):.2f}"
-
-    prog = Progress(f"posterior ({meta['sampler']})", enabled=progress)
+    prog = Progress("posterior (emcee)", enabled=progress)
     runs0 = ev.evaluations
     t0 = time.perf_counter()
     status = "complete"
@@ -1070,8 +1029,6 @@ def posterior(
         if steps > 0:
             for _ in sampler.sample(coords.from_unit(p0), iterations=steps):
                 done += 1
-                if slice_:
-                    meta["mu"] = sampler.mu  # a resumed chain goes on with the tuned scale
                 if adaptive and len(prev_chain) + done >= next_check:
                     d = chain_diagnostics(
                         np.concatenate([prev_chain, unit_chain()]),
@@ -1095,7 +1052,7 @@ def posterior(
                     last = time.perf_counter()
                 prog.update(
                     f"step {len(prev_chain) + done}/{'at most ' if adaptive else ''}{len(prev_chain) + steps}, "
-                    f"{ev.evaluations} simulations, {moves()}{ess}"
+                    f"{ev.evaluations} simulations, acceptance {np.mean(sampler.acceptance_fraction):.2f}{ess}"
                 )
     except KeyboardInterrupt:
         status = "interrupted"
@@ -1118,7 +1075,7 @@ def posterior(
         sigma,
         seconds,
         status,
-        acceptance=float(np.mean(sampler.acceptance_fraction)) if done and not slice_ else float("nan"),
+        acceptance=float(np.mean(sampler.acceptance_fraction)) if done else float("nan"),
         truth=reference_values(study, space),
         nonunique_candidates=nonunique_candidates,
         seed=seed,
@@ -1127,9 +1084,6 @@ def posterior(
         effective_samples=effective_samples,
     )
     res.simulations = simulated if not resume else None  # a resumed chain's earlier part is not counted
-    res.sampler = {"kind": meta["sampler"]}
-    if slice_:
-        res.sampler.update(mu=float(sampler.mu), evaluations_per_walker_step=sampler.evaluations / max(1, done * nw))
     if prepared.note:
         res.warnings.insert(0, prepared.note)
     if status == "complete" and ckpt is not None and ckpt.exists():
@@ -1137,22 +1091,9 @@ def posterior(
     return res
 
 
-#: the ensemble samplers :func:`posterior` can run
-SAMPLERS = ("emcee", "slice", "slice-light")
-
-
-def ensemble_sampler(like, walkers: int, n: int, seed: int, kind: str = "emcee", mu: float | None = None):
-    """The ensemble sampler of :func:`posterior` over the vectorised log-probability ``like`` (the sampling
-    coordinates), seeded: ``"emcee"``, emcee's with differential-evolution moves (80 % DE, 20 % DE snooker);
-    ``"slice"``, ensemble slice sampling (:class:`~wallcal.analysis.ensemble_slice.EnsembleSliceSampler`; ``mu``
-    the tuned scale of a resumed chain, its tuning then off)."""
-    if kind.startswith("slice"):
-        from .ensemble_slice import EnsembleSliceSampler
-
-        light = kind == "slice-light"
-        if mu is None:
-            return EnsembleSliceSampler(like, walkers, n, seed, light=light)
-        return EnsembleSliceSampler(like, walkers, n, seed, mu=mu, tune=False, light=light)
+def ensemble_sampler(like, walkers: int, n: int, seed: int):
+    """The emcee ensemble sampler of :func:`posterior`: vectorised log-probability ``like`` (over the sampling
+    coordinates), differential-evolution moves (80 % DE, 20 % DE snooker), seeded."""
     import emcee
 
     sampler = emcee.EnsembleSampler(
