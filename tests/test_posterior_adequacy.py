@@ -85,6 +85,27 @@ def test_the_default_chain_stops_at_max_steps_and_says_it_is_not_adequate(exampl
         posterior(example_study, effective_samples=0, progress=False)
 
 
+def test_the_default_chain_stops_when_adequate_and_is_summarised_with_that_check(example_study, monkeypatch):
+    """The chain stops at the first check that finds it adequate (here forced at step ADAPTIVE_FIRST_CHECK), and the
+    summary reuses that check's diagnostics of the same chain instead of computing them again."""
+    import dataclasses
+
+    from wallcal.analysis import posterior as post
+
+    calls = []
+
+    def adequate(chain, log_prob=None, target=post.DEFAULT_EFFECTIVE_SAMPLES):
+        calls.append(len(chain))
+        return dataclasses.replace(chain_diagnostics(chain, log_prob, target), adequate=True, reasons=[])
+
+    monkeypatch.setattr(post, "chain_diagnostics", adequate)
+    r = posterior(example_study, walkers=40, progress=False, nonunique_candidates=8)
+    assert calls == [post.ADAPTIVE_FIRST_CHECK]
+    assert r.chain.shape[0] == post.ADAPTIVE_FIRST_CHECK
+    assert r.adequate and r.to_json()["adequate"] is True
+    assert not any("not adequate" in w for w in r.warnings)
+
+
 @pytest.mark.parametrize("flag", ["--steps", "--effective-samples", "--max-steps"])
 def test_cli_refuses_a_chain_length_that_is_not_positive(flag, capsys):
     from conftest import EXAMPLE

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from wallcal.analysis.posterior import AR1Likelihood, _stats, burn_and_thin, ensemble_sampler
+from wallcal.analysis.posterior import AR1Likelihood, _stats, burn_and_thin, chain_diagnostics, ensemble_sampler
 
 pytest.importorskip("emcee")
 
@@ -74,7 +74,7 @@ def test_posterior_of_a_linear_gaussian_ar1_model(tau):
     sampler.run_mcmc(p0, steps)
     chain = sampler.get_chain()
     acc = float(np.mean(sampler.acceptance_fraction))
-    tau_ac, burn, thin, warnings = burn_and_thin(chain, acc, sampler.get_log_prob())
+    tau_ac, burn, thin, warnings = burn_and_thin(chain_diagnostics(chain, sampler.get_log_prob()), acc)
     assert not warnings, warnings  # adequate: long enough, its autocorrelation time settled
     X = model.from_unit(chain[burn::thin].reshape(-1, 2))
     # Monte-Carlo error: n_eff = walkers x (steps - burn) / tau_ac independent draws; the posterior mean's standard

@@ -1022,9 +1022,12 @@ def posterior(
     done = 0
     next_check = max(ADAPTIVE_FIRST_CHECK, len(prev_chain))
     ess = ""
+    final = None  # the diagnostics of the chain as it ends, when the adequacy check computed them
     if adaptive and len(prev_chain) >= ADAPTIVE_FIRST_CHECK:
-        if chain_diagnostics(prev_chain, prev_lp, effective_samples).adequate:
+        d = chain_diagnostics(prev_chain, prev_lp, effective_samples)
+        if d.adequate:
             steps = 0  # the resumed chain is adequate already
+            final = d
     try:
         if steps > 0:
             for _ in sampler.sample(coords.from_unit(p0), iterations=steps):
@@ -1036,6 +1039,7 @@ def posterior(
                         effective_samples,
                     )
                     if d.adequate:
+                        final = d
                         break
                     length = len(prev_chain) + done
                     next_check = length + max(ADAPTIVE_EVERY, int(ADAPTIVE_GROWTH * length))
@@ -1082,6 +1086,7 @@ def posterior(
         tempering=temp,
         missing_extensions=missing_extensions,
         effective_samples=effective_samples,
+        diagnostics=final,
     )
     res.simulations = simulated if not resume else None  # a resumed chain's earlier part is not counted
     if prepared.note:
@@ -1234,15 +1239,9 @@ def chain_diagnostics(chain: np.ndarray, log_prob=None, target: float = DEFAULT_
     )
 
 
-def burn_and_thin(
-    chain: np.ndarray, acceptance: float = nan, log_prob=None, target: float = DEFAULT_EFFECTIVE_SAMPLES
-) -> tuple[np.ndarray, int, int, list]:
-    """Integrated autocorrelation time per parameter [steps], burn-in and thinning of a chain (steps, walkers, n),
-    and the warnings on its adequacy (:func:`chain_diagnostics`) and acceptance."""
-    return _burn_and_thin(chain_diagnostics(chain, log_prob, target), acceptance)
-
-
-def _burn_and_thin(d: ChainDiagnostics, acceptance: float) -> tuple[np.ndarray, int, int, list]:
+def burn_and_thin(d: ChainDiagnostics, acceptance: float = nan) -> tuple[np.ndarray, int, int, list]:
+    """Integrated autocorrelation time per parameter [steps], burn-in and thinning of a chain, from its
+    :func:`chain_diagnostics` ``d``, and the warnings on its adequacy and acceptance."""
     warnings = []
     if not d.adequate:
         warnings.append(
@@ -1272,11 +1271,13 @@ def summarise(
     tempering=None,
     missing_extensions=(),
     effective_samples: float = DEFAULT_EFFECTIVE_SAMPLES,
+    diagnostics: ChainDiagnostics | None = None,
 ) -> PosteriorResult:
     """Burn-in, thinning, diagnostics, per-parameter and derived summaries, non-uniqueness demonstration,
-    posterior predictive checks and the structure verdict."""
-    diag = chain_diagnostics(chain, logp, effective_samples)
-    tau, burn, thin, warnings = _burn_and_thin(diag, acceptance)
+    posterior predictive checks and the structure verdict. ``diagnostics``: those of this very chain
+    (:func:`chain_diagnostics` with ``effective_samples``), when the caller has them already."""
+    diag = diagnostics or chain_diagnostics(chain, logp, effective_samples)
+    tau, burn, thin, warnings = burn_and_thin(diag, acceptance)
     flat_u = chain[burn::thin].reshape(-1, chain.shape[2])
     X = space.from_unit(flat_u)
     rng = np.random.default_rng(seed)
