@@ -27,8 +27,8 @@ from posterior_coverage import CAMPAIGNS, LINEAR_22, make_campaign
 
 import wallcal
 from wallcal.analysis import reference_values, space_with_targets
-from wallcal.analysis.identifiability import log_coordinates, sensor_sigma, to_z, verdict
-from wallcal.analysis.posterior import AR1Likelihood, LogCoordinates, derived, lag1, linearise, sandwich_weight
+from wallcal.analysis.identifiability import log_coordinates, to_z, verdict
+from wallcal.analysis.posterior import AR1Likelihood, LogCoordinates, derived, error_model, linearise, sandwich_weight
 from wallcal.calibration import calibrate
 from wallcal.calibration.objective import Evaluator
 from wallcal.calibration.space import parse_space
@@ -39,14 +39,7 @@ def target(study, prep, x):
     """The posterior's likelihood and sampling coordinates at the optimum ``x`` [SI], as posterior() makes them."""
     space = space_with_targets(study, parse_space(study), None)
     ev = Evaluator(prep, space)
-    e0 = ev.errors(x[None])[0]
-    sig, ph, tau = {}, {}, {}
-    for k, t in enumerate(space.targets):
-        m = ev.mask[k]
-        ek = np.where(m, e0[k] - e0[k][m].mean(), 0.0)
-        ph[t] = lag1(ek, m)
-        sig[t] = float(np.sqrt(np.mean(ek[m] ** 2)))
-        tau[t] = 0.5 * sensor_sigma(study, t, ev.y[k][m])
+    sig, ph, tau = error_model(study, space, ev, x)
     lin = linearise(ev, space, x, sig, ph, tau)
     w = sandwich_weight(ev, space, x, sig, ph, lin=lin)["weight"]
     like = AR1Likelihood(

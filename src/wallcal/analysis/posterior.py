@@ -261,6 +261,25 @@ class Linearisation:
     information: np.ndarray
 
 
+def error_model(study, space, ev, x, sigma: str = "estimated", bias: bool = True) -> tuple[dict, dict, dict]:
+    """The error model of :func:`posterior` per target of ``space``, from the residuals at ``x`` [SI] (``ev``: its
+    :class:`~wallcal.calibration.objective.Evaluator`): the noise sd sigma (the RMSE of the residuals without
+    their constant part, ``sigma="estimated"``, or the sensor's stated accuracy, ``"accuracy"``) [target unit],
+    the lag-1 correlation phi of those residuals, and the prior sd of the constant sensor bias (half the stated
+    accuracy; 0 without ``bias``) [target unit]; three dicts keyed by target."""
+    from .identifiability import sensor_sigma
+
+    e0 = ev.errors(np.asarray(x, dtype=float)[None])[0]
+    sig, ph, tau = {}, {}, {}
+    for k, t in enumerate(space.targets):
+        m = ev.mask[k]
+        ek = np.where(m, e0[k] - e0[k][m].mean(), 0.0)  # the constant part is the sensor bias, modelled apart
+        ph[t] = lag1(ek, m)
+        sig[t] = float(np.sqrt(np.mean(ek[m] ** 2))) if sigma == "estimated" else sensor_sigma(study, t, ev.y[k][m])
+        tau[t] = (0.5 * sensor_sigma(study, t, ev.y[k][m])) if bias else 0.0
+    return sig, ph, tau
+
+
 def linearise(ev, space, x_start, sigma, phi, bias_sd=None, *, h: float = 1e-3) -> Linearisation:
     """Central-difference sensitivities of the residuals at ``x_start`` (one batch of 2n + 1 runs), whitened by
     the AR(1) model of each target (:func:`whiten`; the constant part of each series, the sensor bias, removed),
@@ -933,7 +952,6 @@ def posterior(
     from ..errors import WallcalError, require
     from ..simulation import BATCH_NEEDS, prepare
     from . import reference_values, space_with_targets
-    from .identifiability import sensor_sigma
 
     require("emcee", "analysis")  # a clear error when the analysis extra is missing
     space = space_with_targets(study, parse_space(study), targets)
@@ -950,14 +968,7 @@ def posterior(
     steps = int(max_steps if adaptive else steps)
     if max_evaluations:
         steps = min(steps, max(1, int(max_evaluations) // nw))
-    e0 = ev.errors(x_start[None])[0]
-    sig, ph, tau = {}, {}, {}
-    for k, t in enumerate(space.targets):
-        m = ev.mask[k]
-        ek = np.where(m, e0[k] - e0[k][m].mean(), 0.0)  # the constant part is the sensor bias, modelled apart
-        ph[t] = lag1(ek, m)
-        sig[t] = float(np.sqrt(np.mean(ek[m] ** 2))) if sigma == "estimated" else sensor_sigma(study, t, ev.y[k][m])
-        tau[t] = (0.5 * sensor_sigma(study, t, ev.y[k][m])) if bias else 0.0
+    sig, ph, tau = error_model(study, space, ev, x_start, sigma, bias)
     if tempering not in ("sandwich", "none"):
         raise WallcalError(f"tempering: {tempering!r} is not one of 'sandwich', 'none'")
     temp = {"kind": "none", "weight": 1.0}
