@@ -386,7 +386,7 @@ def main() -> None:
     ap.add_argument(
         "--steps", type=int, help="steps per posterior (default the posterior's: until the chain is adequate)"
     )
-    ap.add_argument("--walkers", type=int, help="default the posterior's (4 n)")
+    ap.add_argument("--walkers", type=int, help="default the posterior's (4 per sampled coordinate)")
     ap.add_argument("--no-diagnose", action="store_true")
     ap.add_argument(
         "--no-without", action="store_true", help="skip the 'without diagnose' arm (only the study diagnose writes)"
@@ -399,7 +399,7 @@ def main() -> None:
     )
     ap.add_argument("--speed", action="store_true", help="only time the 22-parameter posterior")
     ap.add_argument("--speed-steps", type=int, help="default the posterior's (until the chain is adequate)")
-    ap.add_argument("--speed-walkers", type=int, help="default the posterior's (4 n)")
+    ap.add_argument("--speed-walkers", type=int, help="default the posterior's (4 per sampled coordinate)")
     ap.add_argument("--speed-seed", type=int, default=1, help="the timed posterior's seed")
     ap.add_argument("--speed-space", choices=("lambdaT", "linear"), default="lambdaT")
     ap.add_argument(

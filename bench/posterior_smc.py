@@ -27,7 +27,7 @@ from posterior_coverage import CAMPAIGNS, LINEAR_22, make_campaign
 
 import wallcal
 from wallcal.analysis import reference_values, space_with_targets
-from wallcal.analysis.identifiability import log_coordinates, to_z, verdict
+from wallcal.analysis.identifiability import to_z, verdict
 from wallcal.analysis.posterior import AR1Likelihood, LogCoordinates, derived, error_model, linearise, sandwich_weight
 from wallcal.calibration import calibrate
 from wallcal.calibration.objective import Evaluator
@@ -50,21 +50,20 @@ def target(study, prep, x):
 
 def smc(space, ev, coords, particles: int, seed: int, log=print):
     """Particles (z coordinates) of the posterior, and the stages run."""
-    lg = log_coordinates(space)
     rng = np.random.default_rng(seed)
-    n = space.n
+    n = coords.dim  # the sampled coordinates (a layer's rho and c as one, ln(rho c))
 
     def split(Z):
         """Log-prior (-inf outside the box) and log-likelihood (-inf outside: not simulated)."""
         U = coords.to_unit(Z)
         inside = np.all((U >= 0) & (U <= 1), axis=1)
-        lp = np.where(inside, np.sum(np.where(lg[None], Z, 0.0), axis=1), -np.inf)
+        lp = np.where(inside, coords.log_prior(Z), -np.inf)
         ll = np.full(len(Z), -np.inf)
         if inside.any():
             ll[inside] = coords.like(U[inside])
         return lp, ll
 
-    Z = coords.from_unit(rng.random((particles, n)))
+    Z = coords.from_unit(rng.random((particles, space.n)))
     LP, LL = split(Z)
     beta, stage, scale = 0.0, 0, 2.38 / np.sqrt(n)
     t0, sims0 = time.perf_counter(), ev.evaluations
@@ -135,7 +134,7 @@ def main() -> None:
             t, sims = time.perf_counter(), ev.evaluations
             Z, stages = smc(space, ev, coords, args.particles, seed)
             dt, sims = time.perf_counter() - t, ev.evaluations - sims
-            X = space.from_unit(coords.to_unit(Z))
+            X = space.from_unit(coords.draw_unit(Z, np.random.default_rng(seed)))
             runs.append(to_z(space, X))
             post, pri, tru = (derived(space, study.wall, v) for v in (X, prior, truth[None]))
             held95 = held50 = k = 0

@@ -94,6 +94,17 @@ def _groups(space, wall):
     return g
 
 
+def capacity_pairs(space) -> list[tuple[int, int]]:
+    """The (density, specific heat) parameter pairs of one layer group, both in log coordinates: the model sees
+    only their product rho*c (list of (index of rho, index of c))."""
+    lg = log_coordinates(space)
+    pairs = []
+    for props in _groups(space, None).values():
+        if "density" in props and "specific_heat" in props and lg[props["density"]] and lg[props["specific_heat"]]:
+            pairs.append((props["density"], props["specific_heat"]))
+    return pairs
+
+
 def group_label(wall, layers) -> str:
     return ",".join(wall.layers[i].id for i in layers)
 
@@ -108,19 +119,18 @@ def structural_directions(space, wall, with_flux: bool = False) -> list[tuple[st
     lg = log_coordinates(space)
     out = []
     groups = _groups(space, wall)
-    for layers, props in groups.items():
-        if "density" in props and "specific_heat" in props and lg[props["density"]] and lg[props["specific_heat"]]:
-            d = np.zeros(space.n)
-            d[props["density"]], d[props["specific_heat"]] = 1.0, -1.0
-            lab = group_label(wall, layers)
-            out.append(
-                (
-                    f"rho_c[{lab}]",
-                    f"layer {lab}: density and specific heat act only through their product "
-                    f"rho*c (raising one and lowering the other changes nothing)",
-                    d / np.linalg.norm(d),
-                )
+    for j_rho, j_c in capacity_pairs(space):
+        d = np.zeros(space.n)
+        d[j_rho], d[j_c] = 1.0, -1.0
+        lab = group_label(wall, space.parameters[j_rho].layers)
+        out.append(
+            (
+                f"rho_c[{lab}]",
+                f"layer {lab}: density and specific heat act only through their product "
+                f"rho*c (raising one and lowering the other changes nothing)",
+                d / np.linalg.norm(d),
             )
+        )
     if with_flux:
         return out
     # common scale of every lambda and every rho*c (needs every massive layer's lambda and rho*c free)

@@ -144,7 +144,11 @@ def register(sub) -> None:
         help="a `wallcal diagnose` output: its adopted extensions that this study lacks make the self-check say "
         "that the data reject the structure",
     )
-    p.add_argument("--walkers", type=int, help="default 4 x the parameters")
+    p.add_argument(
+        "--walkers",
+        type=int,
+        help="default 4 x the sampled coordinates (a layer's density and specific heat count as one)",
+    )
     p.add_argument(
         "--steps",
         type=int,
