@@ -418,7 +418,8 @@ def main() -> None:
             speed(workdir, *args_)
             return
         print(
-            f"settings: {args.walkers or '4 n'} walkers x {args.steps or 'until adequate'} steps per posterior, "
+            f"settings: {args.walkers or '4 per sampled coordinate'} walkers x "
+            f"{args.steps or 'until adequate'} steps per posterior, "
             f"temperings {args.tempering}, "
             f"campaigns {args.campaigns}, calibration: the study's pso-hj; the 'with diagnose' arm starts at "
             f"{'diagnose' + chr(39) + 's recalibrated optimum' if args.start == 'diagnose' else 'a fresh calibration'}"
