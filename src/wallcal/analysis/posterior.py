@@ -720,12 +720,23 @@ class PosteriorResult:
             "inside 95%": int(c.loc[sel, "inside 95%"].sum()),
         }
 
+    def _pairs_line(self) -> str:
+        from .identifiability import capacity_pairs
+
+        k = len(capacity_pairs(self.space))
+        if not k:
+            return ""
+        return (
+            f"; {self.space.n - k} sampled coordinates: the density and specific heat of {k} layer "
+            f"group{'s' if k > 1 else ''} as their product rho*c (the split drawn from the prior)"
+        )
+
     def report(self) -> str:
         lines = [
             f"posterior ({self.status}): {self.chain.shape[1]} walkers x {self.chain.shape[0]} steps = "
             f"{self.evaluations} proposals{self._simulated()} in {self.seconds:.1f} s; burn-in {self.burn}, "
             f"thin {self.thin}, "
-            f"{len(self.samples)} samples",
+            f"{len(self.samples)} samples{self._pairs_line()}",
             f"error model AR(1) per target + constant sensor bias integrated out, sigma {self.sigma_kind}: "
             + ", ".join(
                 f"{k} sigma {self.sigma[k]:.3g} phi {self.phi[k]:.3f} (n_eff factor "
