@@ -999,36 +999,39 @@ def diagnose(
             evaluators[key] = Evaluator(prepared, sp)
         return evaluators[key]
 
-    def fit(tables: list[dict], names: tuple, x_start: dict, ll_before: float | None = None, jacobians=None) -> _Fit:
-        """Recalibrate a structure from ``x_start`` (the study's objective with the sensor biases profiled out,
-        warm-started) and score it by its AR(1) log-likelihood (biases integrated out): ``ll_before`` plus the
-        gain of this fit over its starting point (the structure it extends, with the new parameters at their base
-        values) - a contact link or the lambda(T) path changes the discrete model slightly even at the base value,
-        and that change is no evidence for the extension. Without ``ll_before``: the log-likelihood at the fit."""
+    def fit(tables: list[dict], names: tuple, starts: list, jacobians=None) -> _Fit:
+        """Recalibrate a structure from each of ``starts`` (the study's objective with the sensor biases profiled
+        out, warm-started) and score it by its AR(1) log-likelihood (biases integrated out), the best of the starts.
+        ``starts``: (x_start, ll_before) pairs, ``x_start`` a dict of parameter values (the structure it extends;
+        the new parameters at their base values); the score of a fit from it is ``ll_before`` plus the fit's gain
+        over its starting point - a contact link or the lambda(T) path changes the discrete model slightly even at
+        the base value, and that change is no evidence for the extension. ``ll_before`` None: the
+        log-likelihood at the fit."""
         nonlocal evaluations
         sp = space if not tables else parse_space(study, _extended_raw(study, tables)["calibration"])
         ev = evaluator(sp)
-        xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
-        xs = np.clip(xs, sp.lower, sp.upper)
-        ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau)[0] if ll_before is not None else 0.0
-        # a probe depth starting on a contact's double node is also fitted from just off it (node_starts)
         best = None
-        for s in node_starts(sp, ev.inp.wall, ev.inp.options.contact_layers, xs):
-            u, n_runs = refine(
-                lambda U: debiased_residuals(ev, sp.from_unit(U), tau, noise),
-                sp.to_unit(s),
-                jacobians or max_jacobians,
-                FTOL,
-            )
-            x = sp.from_unit(u)
-            E = ev.errors(x[None])[0]
-            evaluations += n_runs + 2
-            ll, n, _, _ = ar1_profile(E, ev.mask, tau)
-            if best is None or ll > best[0]:
-                best = (ll, n, x, E)
+        for x_start, ll_before in starts:
+            xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
+            xs = np.clip(xs, sp.lower, sp.upper)
+            ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau)[0] if ll_before is not None else 0.0
+            # a probe depth starting on a contact's double node is also fitted from just off it (node_starts)
+            for s in node_starts(sp, ev.inp.wall, ev.inp.options.contact_layers, xs):
+                u, n_runs = refine(
+                    lambda U: debiased_residuals(ev, sp.from_unit(U), tau, noise),
+                    sp.to_unit(s),
+                    jacobians or max_jacobians,
+                    FTOL,
+                )
+                x = sp.from_unit(u)
+                E = ev.errors(x[None])[0]
+                evaluations += n_runs + 2
+                ll, n, _, _ = ar1_profile(E, ev.mask, tau)
+                if ll_before is not None:
+                    ll = ll_before + (ll - ll0)
+                if best is None or ll > best[0]:
+                    best = (ll, n, x, E)
         ll, n, x, E = best
-        if ll_before is not None:
-            ll = ll_before + (ll - ll0)
         rmse = np.sqrt(np.einsum("tk,tk->t", E, E) / ev.n_valid)
         return _Fit(names, x, sp, -2.0 * ll + sp.n * math.log(max(n, 2)), rmse, ll)
 
@@ -1048,7 +1051,7 @@ def diagnose(
     say("recalibrating the study's structure (warm start)", force=True)
     # the start is the optimum of the study's objective, which counts a sensor's bias as misfit: the base structure
     # is re-polished to convergence under the criterion's error model, so that no candidate gains from that alone
-    base = fit([], (), dict(zip(space.names, x0, strict=True)), jacobians=BASE_JACOBIANS * max_jacobians)
+    base = fit([], (), [(dict(zip(space.names, x0, strict=True)), None)], jacobians=BASE_JACOBIANS * max_jacobians)
     ev0 = evaluator(space)
     _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask, tau)
     resid = residual_analysis(ev0, base.x, prepared.times)
@@ -1070,11 +1073,20 @@ def diagnose(
         return True
 
     def score(names: tuple, warm: _Fit) -> _Fit:
+        """Fit and score a structure, warm-started from ``warm`` and from every other scored structure it extends
+        by one extension: a combination's optimum can lie far from one parent's (on the ``all`` campaign of
+        ``bench/posterior_coverage.py``, lambda(T) + contact + depth from the lambda(T) + contact optimum, whose
+        contact absorbs the probe's offset, stayed in that valley; from lambda(T) + depth it found the true one)."""
         key = tuple(sorted(names))
         if key not in fits:
             say(f"scoring {' + '.join(names)} ({len(fits) + 1} scored, {evaluations} simulations)")
+            parents = [warm] + [
+                f for k, f in fits.items() if len(k) == len(key) - 1 and set(k) < set(key) and f is not warm
+            ]
             fits[key] = fit(
-                [by_name[n].table for n in names], names, dict(zip(warm.space.names, warm.x, strict=True)), warm.ll
+                [by_name[n].table for n in names],
+                names,
+                [(dict(zip(p.space.names, p.x, strict=True)), p.ll) for p in parents],
             )
         return fits[key]
 
@@ -1089,8 +1101,7 @@ def diagnose(
         fits[key] = fit(
             [by_name[n].table for n in f.names],
             f.names,
-            dict(zip(f.space.names, f.x, strict=True)),
-            f.ll,
+            [(dict(zip(f.space.names, f.x, strict=True)), f.ll)],
             jacobians=BASE_JACOBIANS * max_jacobians,
         )
         return fits[key]
