@@ -520,3 +520,35 @@ def test_a_structure_holding_parameters_at_bounds_needs_only_positive_evidence()
     fits = {"A": F(names=("A",), bic=-gain)}
     fit, adopted, _, weak = forward_select(F(names=(), bic=0.0), fits, None, lambda f: f, lambda names: True)
     assert adopted == () and not weak
+
+
+def test_a_combination_is_fitted_from_each_parent(probe_campaign, monkeypatch):
+    """A structure of two extensions is recalibrated from the optimum it was reached from and from the optimum of
+    its other one-extension parent: when it is first scored, starts from two different points (one parent's
+    optimum can hold the combination in a valley the other's is outside of)."""
+    import wallcal.analysis.diagnose as dg
+
+    calls: list = []
+    real = dg.node_starts
+
+    def spy(space, wall, contact_layers, x):
+        calls.append((tuple(space.names), np.array(x, dtype=float)))
+        return real(space, wall, contact_layers, x)
+
+    monkeypatch.setattr(dg, "node_starts", spy)
+    d = diagnose(load_study(probe_campaign))
+    assert d.adopted == ["depth[T3A]"]
+    n_own = len(d.base_study.calibration.names)
+    first: dict[tuple, list] = {}  # the starts of each structure's first fit: its first run of consecutive calls
+    done: set = set()
+    for i, (names, x) in enumerate(calls):
+        if i and calls[i - 1][0] != names and calls[i - 1][0] in first:
+            done.add(calls[i - 1][0])
+        if names not in done:
+            first.setdefault(names, []).append(x)
+    pairs = {k: v for k, v in first.items() if len(k) == n_own + 2}
+    assert pairs, "no combination of two extensions was scored"
+    for names, starts in pairs.items():
+        # (node_starts itself varies only probe depths: compare the other parameters)
+        other = np.array([not n.startswith("depth[") for n in names])
+        assert len({tuple(np.round(s[other], 12)) for s in starts}) >= 2, names
