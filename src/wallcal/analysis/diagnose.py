@@ -1075,8 +1075,9 @@ def diagnose(
     def score(names: tuple, warm: _Fit) -> _Fit:
         """Fit and score a structure, warm-started from ``warm`` and from every other scored structure it extends
         by one extension: a combination's optimum can lie far from one parent's (on the ``all`` campaign of
-        ``bench/posterior_coverage.py``, lambda(T) + contact + depth from the lambda(T) + contact optimum, whose
-        contact absorbs the probe's offset, stayed in that valley; from lambda(T) + depth it found the true one)."""
+        ``bench/posterior_coverage.py``, lambda(T) + contact + depth fitted from the lambda(T) + contact optimum,
+        whose contact absorbs the probe's offset, stayed in that valley or left it depending on the engine's
+        round-off; see docs/identifiability.md, step 4)."""
         key = tuple(sorted(names))
         if key not in fits:
             say(f"scoring {' + '.join(names)} ({len(fits) + 1} scored, {evaluations} simulations)")

@@ -182,6 +182,10 @@ class LogCoordinates:
         self._c_lo, self._c_hi = space.lower[c], space.upper[c]
         # a pair's column in z
         self._col = np.searchsorted(self.keep, rho)
+        # the sampled coordinates whose prior term is their own value (log coordinates outside the pairs)
+        single = self.log.copy()
+        single[self.pairs.reshape(-1)] = False
+        self._single = single[self.keep]
 
     @property
     def names(self) -> list[str]:
@@ -218,7 +222,8 @@ class LogCoordinates:
         U = self.space.to_unit(from_z(self.space, self.to_z_full(Z, v)))
         if len(self.pairs):  # inside the box in exact arithmetic: keep exp(ln x) from stepping out by rounding
             cols = self.pairs.reshape(-1)
-            U[:, cols] = np.where((U[:, cols] > -1e-9) & (U[:, cols] < 1 + 1e-9), np.clip(U[:, cols], 0, 1), U[:, cols])
+            Up = U[:, cols]
+            U[:, cols] = np.where((Up > -1e-9) & (Up < 1 + 1e-9), np.clip(Up, 0.0, 1.0), Up)
         return U
 
     def draw_unit(self, Z, rng):
@@ -249,9 +254,7 @@ class LogCoordinates:
         """Log prior density of the sampled coordinates, up to a constant (-inf where a product is outside the
         box's range)."""
         Z = np.atleast_2d(Z)
-        single = self.log.copy()
-        single[self.pairs.reshape(-1)] = False
-        lp = np.sum(np.where(single[self.keep][None], Z, 0.0), axis=1)
+        lp = np.sum(np.where(self._single[None], Z, 0.0), axis=1)
         if len(self.pairs):
             s = Z[:, self._col]
             log_lo, log_hi = self._split(s)
