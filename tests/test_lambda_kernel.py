@@ -93,7 +93,8 @@ def _kernel(cap, g_ref, f, tref, ue, ui, T0, drift=0.02):
     no_planes = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros((1, 0)))  # no flux at depths
     outputs = (np.arange(n_steps + 1, dtype=np.int64), np.zeros(n_steps + 1), nodes, nodes, np.zeros((1, n_nodes)))
     outputs += no_planes
-    out, energy, _ = kernels.run_batch(wall, laws, faces, outputs, DT, drift, one(T0))
+    results = (np.full((1, n_nodes + 2, n_steps + 1), np.nan), np.zeros((1, 3)), np.zeros((1, n_nodes)))
+    out, energy, _ = kernels.run_batch(wall, laws, faces, outputs, DT, drift, one(T0), results)
     return out[0, :n_nodes]
 
 

@@ -112,21 +112,24 @@ class BatchResult:
 _POOL: ThreadPoolExecutor | None = None
 
 
-def in_threads(part, n: int):
+def in_threads(part, n: int) -> None:
     """Run ``part(slice)`` over ``n`` candidates split into contiguous chunks, one per thread (the
-    kernels release the GIL), and concatenate the results along the first axis. Threads: numba's
-    ``NUMBA_NUM_THREADS`` (the number of cores unless set). A single chunk (one candidate, or one
-    thread) runs on the calling thread as ``part(None)``: all candidates, nothing to slice.
+    kernels release the GIL). Each part writes its candidates' results into arrays that the caller
+    allocated once for the whole batch, in its own thread: the outputs are neither copied nor
+    allocated per thread (on the batch of 256 they are 24 MB, and memory that worker threads allocate
+    and release is page-faulted in again on the next call). Threads: numba's ``NUMBA_NUM_THREADS``
+    (the number of cores unless set). A single chunk (one candidate, or one thread) runs on the calling thread as ``part(None)``:
+    all candidates, nothing to slice.
     """
     global _POOL
     n_threads = min(n, max(1, int(numba.config.NUMBA_NUM_THREADS)))
     if n_threads <= 1:
-        return part(None)
+        part(None)
+        return
     if _POOL is None or _POOL._max_workers < n_threads:
         _POOL = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="wallcal-fd")
     bounds = np.linspace(0, n, n_threads + 1).round().astype(int)
-    parts = list(_POOL.map(lambda i: part(slice(bounds[i], bounds[i + 1])), range(n_threads)))
-    return tuple(np.concatenate(chunks, axis=0) for chunks in zip(*parts, strict=True))
+    list(_POOL.map(lambda i: part(slice(bounds[i], bounds[i + 1])), range(n_threads)))
 
 
 class PreparedFD:
@@ -340,16 +343,20 @@ class PreparedFD:
         return out
 
     def _run_general(self, cap, g, coef, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state) -> BatchResult:
-        sized = self._sized(cap.shape[0])
+        nc = cap.shape[0]
+        sized = self._sized(nc)
         tinit = sized["no_state"] if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         cp = cplus / self.dt if cplus.size else cplus
-        per_candidate = (cap, g, theta, coef, sized["face_h"], bc_theta, pa, pb, pw, cp, tinit)
+        out = np.full((nc, pa.shape[1] + 2 + len(self.depth_link), len(self.out_step)), np.nan)
+        energy = np.zeros((nc, 3))
+        tend = np.zeros(cap.shape)
+        per_candidate = (cap, g, theta, coef, sized["face_h"], bc_theta, pa, pb, pw, cp, tinit, out, energy, tend)
 
         def part(sl):
-            cap, g, theta, coef, bc_h, bc_theta, pa, pb, pw, cp, t0 = (
+            cap, g, theta, coef, bc_h, bc_theta, pa, pb, pw, cp, t0, o, e, te = (
                 per_candidate if sl is None else (a[sl] for a in per_candidate)
             )
-            return kernels.run_batch(
+            kernels.run_batch(
                 (cap, g, theta),
                 (self.kind, coef, self.tref, self.tab_start, self.tab_len, self.tab_T, self.tab_v),
                 (self.bc_type, bc_h, bc_theta, self.ue, self.ui),
@@ -357,9 +364,10 @@ class PreparedFD:
                 self.dt,
                 self.refactor_drift,
                 t0,
+                (o, e, te),
             )
 
-        out, energy, tend = in_threads(part, cap.shape[0])
+        in_threads(part, nc)
         out = self._with_depth_rows(out)
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="general")
 
@@ -406,15 +414,15 @@ class PreparedFD:
             want_k, dws = want[: npr + 2], sized["no_depth_weights"]
         t0 = sized["no_state"] if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
         per_candidate = (cap, g, theta, bc_theta, pa, pb, pw, dws, t0)
+        out = np.empty((nc, npr + 2 + 2 * len(self.depth_link), len(self.out_step)))
+        tend = np.empty((nc, n_nodes))
         if not np.count_nonzero(n_forced):  # no theta raised: every input enters with the scheme's theta
-            out, tend = self._modal_group(per_candidate, None, self._output_plan(), want_k)
+            self._modal_group(per_candidate, None, self._output_plan(), want_k, out, tend)
         else:
             keys = [(a, b) for a, b in modal.input_thetas(theta, bc_theta, self.bc_type).tolist()]
-            out = np.empty((nc, npr + 2 + 2 * len(self.depth_link), len(self.out_step)))
-            tend = np.empty((nc, n_nodes))
             for key in dict.fromkeys(keys):
                 idx = np.flatnonzero([k == key for k in keys])
-                out[idx], tend[idx] = self._modal_group(per_candidate, idx, self._output_plan(key), want_k)
+                self._modal_group(per_candidate, idx, self._output_plan(key), want_k, out, tend)
         if not np.isfinite(tend).all():
             raise EngineError("the modal eigen-decomposition failed (LAPACK's reduction or the QL); use path='general'")
         if n_d:
@@ -424,19 +432,22 @@ class PreparedFD:
         energy = np.full((nc, 3), np.nan)  # the balance is the general path's
         return BatchResult(out=out, energy=energy, final_state=tend, implicit_links=n_forced, path="modal")
 
-    def _modal_group(self, per_candidate, idx, plan, want_k):
+    def _modal_group(self, per_candidate, idx, plan, want_k, out, tend) -> None:
         """The modal kernel over the candidates ``idx`` (None: all) of ``per_candidate`` (cap, g, theta,
-        bc_theta, pa, pb, pw, dws, t0) with one output plan, in threads (:func:`in_threads`)."""
+        bc_theta, pa, pb, pw, dws, t0) with one output plan, in threads (:func:`in_threads`), writing
+        their rows of ``out`` and ``tend``."""
+        n = len(per_candidate[0]) if idx is None else len(idx)
+        rows = np.arange(n) if idx is None else idx
 
         def part(sl):
             i = idx if sl is None else (sl if idx is None else idx[sl])
             cap, g, theta, bc_theta, pa, pb, pw, dws, t0 = per_candidate if i is None else (a[i] for a in per_candidate)
-            return modal.modal_batch(
+            modal.modal_batch(
                 cap, g, theta, bc_theta, pa, pb, pw, self.depth_link, dws, self.bc_type, self.bc_h, self.theta, self.dt,
-                self.ue, self.ui, plan, want_k, t0,
+                self.ue, self.ui, plan, want_k, t0, rows if sl is None else rows[sl], out, tend,
             )  # fmt: skip
 
-        return in_threads(part, len(per_candidate[0]) if idx is None else len(idx))
+        in_threads(part, n)
 
     def _modal_depth_rows(self, theta, g, cplus, want):
         """The modal kernel's rows wanted (the depth planes' two level rows each; a plane on a face needs

@@ -759,16 +759,8 @@ def _candidate(c, wall, laws, faces, outputs):
     )
 
 
-@njit(cache=True)
-def _allocate(wall, outputs):
-    cap = wall[0]
-    nc = cap.shape[0]
-    out = np.full((nc, outputs[2].shape[1] + 2 + outputs[5].shape[0], outputs[0].shape[0]), np.nan)
-    return out, np.zeros((nc, 3)), np.zeros(cap.shape)
-
-
 @njit(cache=True, nogil=True)
-def run_batch(wall, laws, faces, outputs, dt, drift, Tinit):
+def run_batch(wall, laws, faces, outputs, dt, drift, Tinit, results):
     """Run every candidate wall of a batch. Releases the GIL: a caller runs parts of a batch in threads
     (:func:`wallcal.engines.fd.in_threads`).
 
@@ -786,15 +778,12 @@ def run_batch(wall, laws, faces, outputs, dt, drift, Tinit):
     dt : time step [s]
     drift : relative drift of a lambda(T) conductance that triggers a refactorisation (0: every step)
     Tinit : (c, j) initial node temperatures, or shape (c, 0) for the steady start
-
-    Returns
-    -------
-    out : (c, p + 2 + d, k) probe temperatures [degC], then exterior and interior face flux and the flux
-        through each depth plane [W/m2]
-    energy : (c, 3) stored-energy change, energy in at the exterior, energy out at the interior [J/m2]
-    Tend : (c, j) final node temperatures [degC]
+    results : (out, energy, Tend), the caller's arrays that the run fills (and returns):
+        out (c, p + 2 + d, k) probe temperatures [degC], then exterior and interior face flux and the flux
+        through each depth plane [W/m2]; energy (c, 3) stored-energy change, energy in at the exterior,
+        energy out at the interior [J/m2]; Tend (c, j) final node temperatures [degC]
     """
-    out, energy, Tend = _allocate(wall, outputs)
+    out, energy, Tend = results
     for c in range(out.shape[0]):
         w, lw, fc, op = _candidate(c, wall, laws, faces, outputs)
         Tend[c] = _run_one(w, lw, fc, op, dt, drift, Tinit[c], out[c], energy[c])

@@ -564,8 +564,9 @@ def modal_batch(*args):
 
 @njit(cache=True, nogil=True)
 def modal_kernel(
-    caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s
-):
+    caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s,
+    pos, outs, tends,
+):  # fmt: skip
     """Run every candidate through its modal recursion (see module docstring). Releases the GIL: a
     caller runs parts of a batch in threads (:func:`wallcal.engines.fd.in_threads`). Call it through
     :func:`modal_batch` (which links the LAPACK routines it calls).
@@ -585,15 +586,15 @@ def modal_kernel(
     plan : :class:`ModalPlan` (a tuple of arrays, the same for every candidate)
     want : (p + 2,) bool, the output rows to form (the others are NaN)
     t0 : (c, j) initial node temperatures, or shape (c, 0) for the steady state of the first inputs
+    pos : (c,) the row of each candidate in ``outs`` and ``tends``, the caller's arrays that the run fills:
+        outs (n, p + 2 + 2 d, k) the outputs, tends (n, j) the final node temperatures (known face nodes
+        included), n >= c
 
-    Returns out (c, p + 2 + 2 d, k) and the final node temperatures (c, j) (known face nodes included).
     ``want`` (p + 2 + 2 d,) bool: the output rows to form (others are left NaN); fewer rows need fewer
     eigenvector components and less work per output time. A candidate whose pencil LAPACK cannot reduce
     or whose QL does not converge gets NaN outputs. (One function with the candidate loop around the
     body: each level of njit calls re-optimises its callees, so a wrapper costs compile time.)
     """
-    outs = np.empty((caps.shape[0], pas.shape[1] + 2 + 2 * dl.shape[0], plan[0].shape[0]))  # plan[0]: the anchors
-    tends = np.empty(caps.shape)
     # LAPACK's scalar arguments (Fortran: by reference): n, 1 (ka = kb = 1), 2 (ldab = ldbb), info
     iargs = np.empty(4, dtype=np.int32)
     iargs[1] = 1
@@ -613,8 +614,8 @@ def modal_kernel(
         pw = pws[cand]
         dw = dws[cand]
         t0 = t0s[cand]
-        out = outs[cand]
-        tend = tends[cand]
+        out = outs[pos[cand]]
+        tend = tends[pos[cand]]
         base, opat, ow, wp, wf, feat, sw, pmain, mainw, xk, xp, xw, s = plan
         n_nodes = cap.shape[0]
         j0, m = operator.unknown_range(n_nodes, bc_type)
@@ -782,4 +783,3 @@ def modal_kernel(
             tend[0] = ue[n_steps]
         if boundary.is_known(bc_type[1]):
             tend[n_nodes - 1] = ui[n_steps]
-    return outs, tends
