@@ -1,24 +1,23 @@
 """The engine's speed lines against an earlier revision's, side by side on the same host.
 
-Run:  .venv/bin/python bench/revisions.py [--rev de315da] [--rounds 6] [--repeat 20]
+Run:  .venv/bin/python bench/revisions.py [--rev de315da] [--pairs 100] [--lines LINE ...]
 
 The shared host's speed drifts by up to 2x from one minute to the next, and so does the ratio of a
 line to the reference loop of ``bench/engine.py`` (throughput-bound and latency-bound code slow down
 differently when a neighbour is busy): the same revision's lambda(T) run has measured 1.35x and
 1.62x the loop on different days. Whether a speed target that an earlier revision met is still met
-is therefore measured against that revision's own code: its tree (``git archive``) and this one run
-the same lines in fresh processes that alternate, round after round, each tree with its own kernel
-cache (warmed before the first round). Printed per line: each tree's median over the rounds and the
-median of the per-round ratios this tree / revision (below 1: this tree is faster). Lines: one
+is therefore measured against that revision's own code: its tree (``git archive``) and this one each
+get a warm process (own kernel cache), and the runs of a line alternate between the two, pair after
+pair, so that both see the same moments of the host. Printed per line: each tree's median and the
+median of the per-pair ratios this tree / revision (below 1: this tree is faster). Lines: one
 simulation (modal path), the batch of 256 candidate walls, one lambda(T) run, the lambda(T) batch of
-16, and the reference loop (which both trees run with the same code: a check on the host's drift).
-A figure, not a test.
+16, and the reference loop (the same code in both processes: its ratio shows what the pairing leaves
+of the host's drift). A figure, not a test.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -34,9 +33,10 @@ from engine import REPO  # noqa: E402
 
 LINES = ("modal one run", "batch of 256", "lambda(T) one run", "lambda(T) batch of 16", "reference loop")
 
-# Runs in a fresh process with the tree's src on the path; uses only the API that both trees have.
+# A server in a fresh process with the tree's src on the path (only the API that both trees have): reads
+# a line's name per input line, runs it once and prints its time in seconds.
 CHILD = r"""
-import json, sys, time
+import sys, time
 import numpy as np
 sys.path.insert(0, sys.argv[2])
 from engine import plain_cn_loop
@@ -45,7 +45,6 @@ from wallcal.engines.fd import FDEngine
 from wallcal.grid import PropertyArrays
 from wallcal.simulation import prepare
 
-repeat = int(sys.argv[3])
 study = wallcal.load_study(sys.argv[1])
 data = prepare(study)
 eng = FDEngine("cn")
@@ -68,23 +67,22 @@ nl_prep = eng.prepare(data.with_wall(nl_wall).inp)
 nl_one = PropertyArrays.from_walls([nl_wall])
 nl_batch = PropertyArrays.from_walls([nl_wall] * 16)
 plain = plain_cn_loop()
-
-def med(fn, n):
+cases = {
+    "modal one run": lambda: prep.run_batch(one),
+    "batch of 256": lambda: prep.run_batch(batch),
+    "lambda(T) one run": lambda: nl_prep.run_batch(nl_one),
+    "lambda(T) batch of 16": lambda: nl_prep.run_batch(nl_batch),
+    "reference loop": plain,
+}
+for fn in cases.values():  # compilation or cache load, and a first call
     fn()
-    ts = []
-    for _ in range(n):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts))
-
-print(json.dumps({
-    "modal one run": med(lambda: prep.run_batch(one), repeat),
-    "batch of 256": med(lambda: prep.run_batch(batch), max(3, repeat // 5)),
-    "lambda(T) one run": med(lambda: nl_prep.run_batch(nl_one), repeat),
-    "lambda(T) batch of 16": med(lambda: nl_prep.run_batch(nl_batch), max(3, repeat // 5)),
-    "reference loop": med(plain, repeat),
-}))
+    fn()
+print("ready", flush=True)
+for line in sys.stdin:
+    fn = cases[line.strip()]
+    t = time.perf_counter()
+    fn()
+    print(time.perf_counter() - t, flush=True)
 """
 
 
@@ -98,52 +96,70 @@ def tree_of(rev: str, into: Path) -> Path:
     return root
 
 
-def measure(root: Path, cache: Path, repeat: int) -> dict[str, float]:
-    env = {**os.environ, "PYTHONPATH": str(root / "src"), "NUMBA_CACHE_DIR": str(cache)}
-    example = root / "src" / "wallcal" / "examples" / "campaign_a" / "study.toml"
-    bench = str(Path(__file__).resolve().parent)
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, str(example), bench, str(repeat)],
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
+class Server:
+    """A tree's measuring process (:data:`CHILD`), warm, timing one run of a line per request."""
+
+    def __init__(self, root: Path, cache: Path):
+        env = {**os.environ, "PYTHONPATH": str(root / "src"), "NUMBA_CACHE_DIR": str(cache)}
+        example = root / "src" / "wallcal" / "examples" / "campaign_a" / "study.toml"
+        bench = str(Path(__file__).resolve().parent)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", CHILD, str(example), bench],
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        if self.proc.stdout.readline().strip() != "ready":
+            raise RuntimeError(f"the measuring process of {root} did not start")
+
+    def time(self, line: str) -> float:
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+        return float(self.proc.stdout.readline())
+
+    def close(self):
+        self.proc.stdin.close()
+        self.proc.wait()
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--rev", default="de315da", help="the earlier revision (default: de315da, which resolved issue 3)")
-    ap.add_argument("--rounds", type=int, default=6)
-    ap.add_argument("--repeat", type=int, default=20)
+    ap.add_argument("--pairs", type=int, default=100, help="alternated pairs of runs per line (batches: a fifth)")
+    ap.add_argument("--lines", nargs="+", default=list(LINES), choices=LINES, metavar="LINE")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        trees = {"revision": tree_of(args.rev, tmp), "this tree": REPO}
-        caches = {name: tmp / f"cache-{i}" for i, name in enumerate(trees)}
-        for name, root in trees.items():  # compile into each tree's cache
-            measure(root, caches[name], 1)
-        runs: dict[str, list[dict[str, float]]] = {name: [] for name in trees}
-        loads = []
-        for r in range(args.rounds):
-            order = list(trees) if r % 2 == 0 else list(trees)[::-1]
-            for name in order:
-                runs[name].append(measure(trees[name], caches[name], args.repeat))
+        servers = {
+            "revision": Server(tree_of(args.rev, tmp), tmp / "cache-revision"),
+            "this tree": Server(REPO, tmp / "cache-this"),
+        }
+        loads = [os.getloadavg()[0]]
+        res = {}
+        for line in args.lines:
+            n = max(5, args.pairs // 5) if "batch" in line else args.pairs
+            a, b = [], []
+            for i in range(n):
+                first, second = ("revision", "this tree") if i % 2 == 0 else ("this tree", "revision")
+                t = {first: servers[first].time(line), second: servers[second].time(line)}
+                a.append(t["revision"])
+                b.append(t["this tree"])
+            res[line] = (np.array(a), np.array(b))
             loads.append(os.getloadavg()[0])
-            print(f"round {r + 1}/{args.rounds} done (load {loads[-1]:.2f})", file=sys.stderr)
+        for s in servers.values():
+            s.close()
     print(
-        f"revision {args.rev} against this tree, {args.rounds} rounds of alternating fresh processes, "
-        f"{args.repeat} repeats each (batches {max(3, args.repeat // 5)}); host load {min(loads):.2f}-{max(loads):.2f}"
+        f"revision {args.rev} against this tree: per line, runs alternated between the two trees' warm "
+        f"processes ({args.pairs} pairs, batches {max(5, args.pairs // 5)}); "
+        f"host load {min(loads):.2f}-{max(loads):.2f}"
     )
-    print(f"{'line':24s} {args.rev + ' (ms)':>14s} {'this tree (ms)':>15s} {'this / rev: median (range)':>30s}")
-    for line in LINES:
-        a = np.array([x[line] for x in runs["revision"]])
-        b = np.array([x[line] for x in runs["this tree"]])
+    print(f"{'line':24s} {args.rev + ' (ms)':>14s} {'this tree (ms)':>15s}   this / rev: median of pairs (p10-p90)")
+    for line, (a, b) in res.items():
         q = b / a
         print(
-            f"{line:24s} {np.median(a) * 1e3:14.3f} {np.median(b) * 1e3:15.3f} "
-            f"{np.median(q):12.3f} ({q.min():.3f}-{q.max():.3f})"
+            f"{line:24s} {np.median(a) * 1e3:14.3f} {np.median(b) * 1e3:15.3f}   "
+            f"{np.median(q):.3f} ({np.percentile(q, 10):.3f}-{np.percentile(q, 90):.3f})"
         )
 
 
