@@ -118,8 +118,8 @@ def in_threads(part, n: int) -> None:
     allocated once for the whole batch, in its own thread: the outputs are neither copied nor
     allocated per thread (on the batch of 256 they are 24 MB, and memory that worker threads allocate
     and release is page-faulted in again on the next call). Threads: numba's ``NUMBA_NUM_THREADS``
-    (the number of cores unless set). A single chunk (one candidate, or one thread) runs on the calling thread as ``part(None)``:
-    all candidates, nothing to slice.
+    (the number of cores unless set). A single chunk (one candidate, or one thread) runs on the calling
+    thread as ``part(None)``: all candidates, nothing to slice.
     """
     global _POOL
     n_threads = min(n, max(1, int(numba.config.NUMBA_NUM_THREADS)))
