@@ -37,6 +37,33 @@ def row(case, ts, per_call=1):
     return (case, med, float(ts.min()), float(ts.max()), per_call / med)
 
 
+def candidate_walls(wall, n: int = 256, seed: int = 1) -> list:
+    """The benchmark's batch: ``n`` copies of ``wall`` with each layer's conductivity, density and specific
+    heat scaled by independent factors uniform in [0.8, 1.2] (seeded)."""
+    rng = np.random.default_rng(seed)
+    walls = []
+    for _ in range(n):
+        w = wall
+        for layer in w.layers:
+            f = 1 + 0.2 * rng.uniform(-1, 1, 3)
+            w = w.replace_layer(
+                layer.id,
+                conductivity=layer.conductivity * f[0],
+                density=layer.density * f[1],
+                specific_heat=layer.specific_heat * f[2],
+            )
+        walls.append(w)
+    return walls
+
+
+def lambda_wall(wall):
+    """The benchmark's lambda(T) wall: the bundled example's with lambda(T) (temperature coefficient 0.0046 1/K)
+    on its mineral-wool layers 3, 5, 7 and 8."""
+    for lid in ("3", "5", "7", "8"):
+        wall = wall.replace_layer(lid, conductivity_temperature_coefficient=0.0046)
+    return wall
+
+
 def plain_cn_loop():
     """The issue's reference (~3.5 ms on this machine): a plain numba Crank-Nicolson loop with a
     pre-factored tridiagonal matrix, 43 interior nodes, 21600 steps, one output every 5 steps. Written
@@ -224,20 +251,7 @@ def main(argv=None):
         )
     )
 
-    rng = np.random.default_rng(1)
-    walls = []
-    for _ in range(256):
-        w = study.wall
-        for layer in w.layers:
-            f = 1 + 0.2 * rng.uniform(-1, 1, 3)
-            w = w.replace_layer(
-                layer.id,
-                conductivity=layer.conductivity * f[0],
-                density=layer.density * f[1],
-                specific_heat=layer.specific_heat * f[2],
-            )
-        walls.append(w)
-    batch = PropertyArrays.from_walls(walls)
+    batch = PropertyArrays.from_walls(candidate_walls(study.wall))
     ts = timeit(lambda: prep.run_batch(batch), max(3, args.repeat // 5))
     rows.append(row(f"batch of 256 candidate walls ({os.cpu_count()} cores), per batch", ts, per_call=256))
     res = prep.run_batch(batch)
@@ -251,9 +265,7 @@ def main(argv=None):
     ts = timeit(lambda: prep.run_batch(batch, rows=targets), max(3, args.repeat // 5))
     rows.append(row("batch of 256, calibration targets only (3 probe rows)", ts, per_call=256))
 
-    nl_wall = study.wall
-    for lid in ("3", "5", "7", "8"):
-        nl_wall = nl_wall.replace_layer(lid, conductivity_temperature_coefficient=0.0046)
+    nl_wall = lambda_wall(study.wall)
     nl_prep = eng.prepare(prep_data.with_wall(nl_wall).inp)
     nl_one = PropertyArrays.from_walls([nl_wall])
     rows.append(row("lambda(T) wall (general path, nonlinear)", timeit(lambda: nl_prep.run_batch(nl_one), args.repeat)))

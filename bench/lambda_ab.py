@@ -26,7 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from engine import EXAMPLE, REPO, plain_cn_loop  # noqa: E402
+from engine import EXAMPLE, REPO, lambda_wall, plain_cn_loop  # noqa: E402
 
 
 def load_baseline(rev: str):
@@ -65,9 +65,7 @@ def main(argv=None):
 
     base = load_baseline(args.baseline)
     study = wallcal.load_study(EXAMPLE)
-    nl_wall = study.wall
-    for lid in ("3", "5", "7", "8"):
-        nl_wall = nl_wall.replace_layer(lid, conductivity_temperature_coefficient=0.0046)
+    nl_wall = lambda_wall(study.wall)
     prep = FDEngine("cn").prepare(prepare(study).with_wall(nl_wall).inp)
     one = PropertyArrays.from_walls([nl_wall])
 

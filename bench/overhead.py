@@ -56,9 +56,7 @@ def main(argv=None):
     study = wallcal.load_study(bench_engine.EXAMPLE)
     data = prepare(study)
     eng = FDEngine("cn")
-    nl_wall = study.wall
-    for lid in ("3", "5", "7", "8"):
-        nl_wall = nl_wall.replace_layer(lid, conductivity_temperature_coefficient=0.0046)
+    nl_wall = bench_engine.lambda_wall(study.wall)
     nl_prep, nl_one = eng.prepare(data.with_wall(nl_wall).inp), PropertyArrays.from_walls([nl_wall])
     prep, one = eng.prepare(data.inp), PropertyArrays.from_walls([study.wall])
     plain = bench_engine.plain_cn_loop()

@@ -39,7 +39,7 @@ CHILD = r"""
 import sys, time
 import numpy as np
 sys.path.insert(0, sys.argv[2])
-from engine import plain_cn_loop
+from engine import candidate_walls, lambda_wall, plain_cn_loop
 import wallcal
 from wallcal.engines.fd import FDEngine
 from wallcal.grid import PropertyArrays
@@ -50,19 +50,8 @@ data = prepare(study)
 eng = FDEngine("cn")
 prep = eng.prepare(data.inp)
 one = PropertyArrays.from_walls([study.wall])
-rng = np.random.default_rng(1)
-walls = []
-for _ in range(256):  # as bench/engine.py
-    w = study.wall
-    for layer in w.layers:
-        f = 1 + 0.2 * rng.uniform(-1, 1, 3)
-        w = w.replace_layer(layer.id, conductivity=layer.conductivity * f[0], density=layer.density * f[1],
-                            specific_heat=layer.specific_heat * f[2])
-    walls.append(w)
-batch = PropertyArrays.from_walls(walls)
-nl_wall = study.wall
-for lid in ("3", "5", "7", "8"):
-    nl_wall = nl_wall.replace_layer(lid, conductivity_temperature_coefficient=0.0046)
+batch = PropertyArrays.from_walls(candidate_walls(study.wall))
+nl_wall = lambda_wall(study.wall)
 nl_prep = eng.prepare(data.with_wall(nl_wall).inp)
 nl_one = PropertyArrays.from_walls([nl_wall])
 nl_batch = PropertyArrays.from_walls([nl_wall] * 16)
