@@ -78,7 +78,11 @@ for line in sys.stdin:
 def tree_of(rev: str, into: Path) -> Path:
     """The source tree of ``rev`` (``git archive``), extracted under ``into``."""
     tar = into / "tree.tar"
-    subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", "-o", str(tar), rev], check=True)
+    done = subprocess.run(
+        ["git", "-C", str(REPO), "archive", "--format=tar", "-o", str(tar), rev], capture_output=True, text=True
+    )
+    if done.returncode != 0:
+        raise SystemExit(f"bench/revisions.py: --rev {rev!r}: git archive failed: {done.stderr.strip()}")
     root = into / "tree"
     with tarfile.open(tar) as t:
         t.extractall(root, filter="data")
