@@ -32,9 +32,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from .errors import StudyError
+from .jit import kernel
 from .wall import Wall
 
 NODE_RULES = ("wallcal", "energyplus")
@@ -273,7 +273,7 @@ def assemble(grid: Grid, props: PropertyArrays) -> tuple[np.ndarray, np.ndarray]
     return cap, g
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def assemble_lines(
     thickness,
     conductivity,

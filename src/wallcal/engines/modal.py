@@ -68,8 +68,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from ..jit import inner, kernel
 from . import boundary, lapack, operator
 
 #: columns of the per-output input features (see :func:`output_plan`)
@@ -81,13 +81,7 @@ N_FUSED = 5
 N_PAT_W = 20
 
 
-def _inner(fastmath=False):
-    """The decorator of the modal kernel's inner functions: compiled (and cached) for calls from compiled
-    code only, without the CPython and C entry points numba would otherwise compile for each."""
-    return njit(cache=True, fastmath=fastmath, no_cpython_wrapper=True, no_cfunc_wrapper=True)
-
-
-@_inner()
+@inner()
 def tridiag_ql(d, e, zt, rot_i, rot_cs):
     """Eigenvalues of a symmetric tridiagonal matrix by implicit QL with Wilkinson shifts.
 
@@ -175,7 +169,7 @@ def tridiag_ql(d, e, zt, rot_i, rot_cs):
     return nrot, rot_i, rot_cs
 
 
-@_inner()
+@inner()
 def apply_w(nrot, rot_i, rot_cs, x):
     """x <- W x (eigenvector coordinates to node coordinates), W from :func:`tridiag_ql`."""
     for k in range(nrot - 1, -1, -1):
@@ -347,7 +341,7 @@ def modal_plan(out_step, out_w, theta, ue, ui, dt) -> ModalPlan:
     )
 
 
-@_inner()
+@inner()
 def _rows(cap, g, pa, pb, pw, dl, dw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     """K over the unknowns (kd, ko), output rows over nodes and their input coefficients.
 
@@ -405,7 +399,7 @@ def _rows(cap, g, pa, pb, pw, dl, dw, bc_type, bc_h, j0, m, kd, ko, G_nodes, D):
     return pe, pi
 
 
-@_inner(fastmath=True)
+@inner()
 def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
     """Per output pattern and requested row: ``Gs = G P(mu) rho`` over the anchor's scaled state
     ``y = z / rho`` and ``H``, the coefficients of ``s`` at steps base .. base + 2 (channels
@@ -440,7 +434,7 @@ def _pattern_coefficients(mu, r0, r1, rho, G, npr, rq, wp, wf, Gs, H):
                 H[p, q, 2 * i + 1] = h1
 
 
-@_inner(fastmath=True)
+@inner(fastmath=True)
 def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
     """Add the input terms of every output, ``sum_p w_p H[p, q] . sw + D[q] . feat``: the main
     pattern and the non-zero ``D`` coefficients in passes vectorised over the outputs, the other
@@ -467,7 +461,7 @@ def _input_terms(out, rq, H, D, feat, sw, pmain, mainw, xk, xp, xw):
             oq[k] += xw[j] * acc
 
 
-@_inner(fastmath=True)
+@inner(fastmath=True)
 def _recursion(y, mu, al, s, base, opat, ow, pm0, n_rq, fq, gf, Gs, rq, out, n_steps):
     """The pass over the steps of one candidate, stopping at each output's anchor (see the module
     docstring): the hot loop, in one function compiled with fastmath (the candidate's set-up around it
@@ -562,7 +556,7 @@ def modal_batch(*args):
     return modal_kernel(*args)
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def modal_kernel(
     caps, gs, thetas, bc_thetas, pas, pbs, pws, dl, dws, bc_type, bc_h, theta, dt, ue, ui, plan, want, t0s,
     pos, outs, tends,

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..jit import kernel
 from . import boundary
 
 
@@ -55,7 +56,7 @@ def assemble_operator(g, w, bc_type, bc_h, w_bc, j0, m, diag, off):
     return pe, pi
 
 
-@njit(cache=True)
+@kernel
 def link_thetas(cap, g, bc_type, bc_h, theta0, dt, stiff_limit):
     """theta per link (c, l) and per face term (c, 2), and the number of terms whose theta was raised (c,).
 
