@@ -28,6 +28,6 @@ def kernel(fn):
     return njit(**FLAGS)(fn)
 
 
-def inner(fastmath: bool = False):
+def inner(fastmath: bool | set[str] = False):
     """The decorator of a function that only compiled code calls: wallcal's flags, no CPython entry point."""
     return njit(**FLAGS, fastmath=fastmath, no_cpython_wrapper=True)

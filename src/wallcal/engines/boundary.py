@@ -31,7 +31,7 @@ entry in :data:`CODES` / :func:`face_parameters`.
 
 from __future__ import annotations
 
-from numba import njit
+from ..jit import inner, kernel
 
 SURFACE_TEMPERATURE = 0
 AIR_TEMPERATURE = 1
@@ -53,20 +53,20 @@ def face_parameters(kind: str, surface_coefficient: float | None) -> tuple[int, 
     return code, h
 
 
-@njit(cache=True)
+@kernel
 def is_known(code):
     """Whether the face node's temperature is imposed (not an unknown)."""
     return code == SURFACE_TEMPERATURE
 
 
-@njit(cache=True)
+@kernel
 def imposes_flux(code):
     """Whether the input is the face heat flux itself (reported as the face flux; does not tie the
     wall's temperature level)."""
     return code == HEAT_FLUX
 
 
-@njit(cache=True)
+@inner()
 def face_conductance(code, h):
     """Conductance [W/(m2K)] between the (unknown) face node and the input, added to the face node's
     diagonal of the operator K (0 for a known face or a heat flux)."""
@@ -75,7 +75,7 @@ def face_conductance(code, h):
     return 0.0
 
 
-@njit(cache=True)
+@inner()
 def input_coupling(code, h, g_face_link, side):
     """Coefficient ``p`` of the input ``u`` in the first (last) unknown row of ``K T = p u``:
     the face link's conductance for a known face (its node is the input), ``h`` for air, and
@@ -87,7 +87,7 @@ def input_coupling(code, h, g_face_link, side):
     return 1.0 * side
 
 
-@njit(cache=True)
+@inner()
 def step_input(code, h, theta_b, side, u1, u0, ts0, theta_g_link):
     """What the input adds to the first (last) unknown row of a step's right-hand side.
 
@@ -101,7 +101,7 @@ def step_input(code, h, theta_b, side, u1, u0, ts0, theta_g_link):
     return side * (theta_b * u1 + (1.0 - theta_b) * u0)
 
 
-@njit(cache=True)
+@inner()
 def step_flux(code, h, theta_b, side, u1, u0, ts1, ts0, half_cell_flux):
     """Face heat flux averaged over a step [W/m2], positive towards the interior.
 
@@ -114,7 +114,7 @@ def step_flux(code, h, theta_b, side, u1, u0, ts1, ts0, half_cell_flux):
     return theta_b * u1 + (1.0 - theta_b) * u0
 
 
-@njit(cache=True)
+@inner()
 def flux_row(code, h, g_face_link, cap_face, side):
     """The face flux as a linear form, for the modal path's output rows:
     ``q = a T_face_unknown + b u + c du/dt + d u_interp``, returned as (a, b, c, d), where ``T_face_unknown``

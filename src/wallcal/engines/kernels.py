@@ -37,13 +37,14 @@ temperature).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, uint64
+from numba import uint64
 
 from ..grid import LAMBDA_CONSTANT, LAMBDA_EXPONENTIAL, LAMBDA_TABLE
+from ..jit import inner, kernel
 from . import boundary, operator
 
 
-@njit(cache=True)
+@inner()
 def _link_factor(kind, coef, tref, tab_start, tab_len, tab_T, tab_v, temp):
     if kind == LAMBDA_CONSTANT:
         return 1.0
@@ -63,7 +64,7 @@ def _link_factor(kind, coef, tref, tab_start, tab_len, tab_T, tab_v, temp):
     return tab_v[s + n - 1]
 
 
-@njit(cache=True)
+@inner()
 def _table_mean(tab_start, tab_len, tab_T, tab_v, ta, tb):
     """Mean of the normalised piecewise-linear table (constant beyond its ends) over [min, max] of ta and
     tb: the exact integral, segment by segment between the table points inside the interval, over its
@@ -87,7 +88,7 @@ def _table_mean(tab_start, tab_len, tab_T, tab_v, ta, tb):
     return acc / (hi - lo)
 
 
-@njit(cache=True)
+@inner()
 def _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, Tfull):
     """Link conductance = mean of lambda(T) over the temperatures of its two nodes.
 
@@ -113,7 +114,7 @@ def _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, 
         g[lnk] = g_ref[lnk] * fac
 
 
-@njit(cache=True)
+@inner()
 def _factor_folded(a, b, m, sc, f1, f2):
     """LU of the symmetric tridiagonal (a diagonal, b off-diagonal) with the pivots folded in:
     sc = 1/pivot scales the right-hand side, f1_i = b_{i-1}/p_i (forward), f2_i = b_i/p_i (backward)."""
@@ -129,7 +130,7 @@ def _factor_folded(a, b, m, sc, f1, f2):
     f2[m - 1] = 0.0
 
 
-@njit(cache=True)
+@inner()
 def _solve_folded(sc, f1, f2, x, m):
     """Solve in place with the factors of :func:`_factor_folded` (x: right-hand side in, solution out)."""
     x[0] *= sc[0]
@@ -139,7 +140,7 @@ def _solve_folded(sc, f1, f2, x, m):
         x[i] -= f2[i] * x[i + 1]
 
 
-@njit(cache=True)
+@inner()
 def _steady(cap, g, g_ref, laws, bc_type, bc_h, ue0, ui0, j0, m, Tfull):
     """Steady state ``K T = p u`` for the first boundary values (Picard iterations when lambda(T)); writes
     Tfull (every node) and leaves the conductances of the last iteration in g."""
@@ -192,7 +193,7 @@ def _steady(cap, g, g_ref, laws, bc_type, bc_h, ue0, ui0, j0, m, Tfull):
             break
 
 
-@njit(cache=True)
+@inner()
 def _face_flux(F, j, n_steps, u, is_flux_bc):
     """Instantaneous face flux at grid time j from the step-average fluxes F[j] = F^{j+1/2} (ring of 4).
 
@@ -209,7 +210,7 @@ def _face_flux(F, j, n_steps, u, is_flux_bc):
     return 0.5 * (F[(j - 1) % 4] + F[j % 4])
 
 
-@njit(cache=True)
+@inner()
 def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, f1, f2):
     """Twisted ("burn at both ends") LU of A0 = Cap/dt + K_theta(g0) over the unknowns.
 
@@ -249,7 +250,7 @@ def _factor_lean(cap, g0, theta, bc_type, bc_h, bc_theta, dt, j0, m, a, b, inv, 
     f2[k] = b[k] if k < m - 1 else 0.0
 
 
-@njit(cache=True)
+@inner()
 def _solve_coefficients(inv, f1, f2, k, m, sc, S):
     """Per-row coefficients of the step loop's twisted solve, from the factors of :func:`_factor_lean`:
     sc, the scale of right-hand side row i (1/pivot; 1/gamma at the twist row k), and, packed per
@@ -276,20 +277,20 @@ def _solve_coefficients(inv, f1, f2, k, m, sc, S):
         S[4 * i + 3] = f2[i] * f2[i - 1]
 
 
-@njit(cache=True, fastmath=True)
+@inner(fastmath=True)
 def _exp_step(x):
     """exp(x) for |x| <= 0.01 (degree-5 Taylor polynomial, relative error < 2e-15)."""
     return 1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (1.0 / 120.0)))))
 
 
-@njit(cache=True)
+@inner()
 def _exact_factors(coef, tref, g_ref, Tmid, Gm):
     """Link factors g_ref exp(f (T_m - T_ref)) at the link's mean temperature T_m = (T_a + T_b) / 2."""
     for lnk in range(Gm.shape[0]):
         Gm[lnk] = g_ref[lnk] * np.exp(coef[lnk] * (0.5 * (Tmid[lnk] + Tmid[lnk + 1]) - tref[lnk]))
 
 
-@njit(cache=True, fastmath=True)
+@inner(fastmath=True)
 def _sinhc(u):
     """sinh(x) / x for u = x^2 <= SINHC_U_MAX (degree-10 Taylor polynomial, relative error < 4e-18)."""
     return 1.0 + u * (
@@ -300,7 +301,7 @@ def _sinhc(u):
 SINHC_U_MAX = 0.0625  # |x| <= 0.25, i.e. |f (T_a - T_b)| <= 0.5
 
 
-@njit(cache=True)
+@inner()
 def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, tab_v, has_table, Tmid, Gm):
     """Kirchhoff-mean conductances g = g_ref (E_a - E_b) / (f (T_a - T_b)) of the exponential law
     E = exp(f (T - T_ref)), written with the link's mean-temperature factor Gm = g_ref E_m
@@ -326,7 +327,7 @@ def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab
             gs[lnk] = g_ref[lnk] * _table_mean(tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta, tb)
 
 
-@njit(cache=True)
+@inner()
 def _step_conductance(fh, dtm_a, dtm_b, gm, tm_a, tm_b):
     """One link's step of :func:`_run_one`'s first lambda(T) pass (``fh = f / 2``): its factor Gm brought
     to the new mid-step temperatures, ``Gm exp(f (dtm_a + dtm_b) / 2)`` (polynomial), the
@@ -339,7 +340,7 @@ def _step_conductance(fh, dtm_a, dtm_b, gm, tm_a, tm_b):
     return gm, gm * _sinhc(u), 1 if (u > SINHC_U_MAX) | (abs(x) > 0.01) else 0
 
 
-@njit(cache=True)
+@inner()
 def _drift_limits(cap, theta, dt, bc_type, lim):
     """The part of the drift tolerance that does not depend on ``g0`` (see :func:`_set_factorised`):
     0.05 / (theta dt (1/c_a + 1/c_b)) (known face nodes count as infinite capacity; inf for a link
@@ -358,7 +359,7 @@ def _drift_limits(cap, theta, dt, bc_type, lim):
         lim[lnk] = 0.05 / stiff if stiff > 0.0 else np.inf
 
 
-@njit(cache=True)
+@inner()
 def _set_factorised(g0, gs, theta, drift, lim, thg, glo, ghi):
     """Take ``g*`` as the factorised conductances ``g0``: ``thg = theta g0`` and the band
     ``[glo, ghi] = g0 -+ tol`` that a conductance may drift in before refactoring, with the drift
@@ -372,7 +373,7 @@ def _set_factorised(g0, gs, theta, drift, lim, thg, glo, ghi):
         ghi[lnk] = g0[lnk] + tol
 
 
-@njit(cache=True, fastmath={"contract"})
+@inner(fastmath={"contract"})
 def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
     """One candidate of :func:`run_batch`.
 
@@ -726,7 +727,7 @@ def _run_one(wall, laws, faces, outputs, dt, drift, Tinit, out, energy):
     return Tn
 
 
-@njit(cache=True)
+@inner()
 def _output(k, nk, w, P, Fe, Fi, Fd, n_steps, ue, ui, imposed_e, imposed_i, out):
     n_pr = P.shape[1]
     for q in range(n_pr):
@@ -744,7 +745,7 @@ def _output(k, nk, w, P, Fe, Fi, Fd, n_steps, ue, ui, imposed_e, imposed_i, out)
         )
 
 
-@njit(cache=True)
+@inner()
 def _candidate(c, wall, laws, faces, outputs):
     """The arguments of :func:`_run_one` for candidate c of a batch (see :func:`run_batch`)."""
     cap, g_ref, theta = wall
@@ -759,7 +760,7 @@ def _candidate(c, wall, laws, faces, outputs):
     )
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def run_batch(wall, laws, faces, outputs, dt, drift, Tinit, results):
     """Run every candidate wall of a batch. Releases the GIL: a caller runs parts of a batch in threads
     (:func:`wallcal.engines.fd.in_threads`).

@@ -16,13 +16,12 @@ constants; ``theta`` for the implicit part of a step), and the input couplings `
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..jit import kernel
 from . import boundary
 
 
-@njit(cache=True)
+@kernel
 def unknown_range(n_nodes, bc_type):
     """(j0, m): the first unknown node and the number of unknowns."""
     j0 = 1 if boundary.is_known(bc_type[0]) else 0
@@ -30,7 +29,7 @@ def unknown_range(n_nodes, bc_type):
     return j0, j1 - j0 + 1
 
 
-@njit(cache=True)
+@kernel
 def assemble_operator(g, w, bc_type, bc_h, w_bc, j0, m, diag, off):
     """Fill ``diag`` (m,) and ``off`` (m,) with K_w over the unknowns (``off[i]`` couples i and i + 1,
     ``off[m - 1] = 0``); return the input couplings (p_e of unknown 0, p_i of unknown m - 1),
