@@ -12,8 +12,8 @@ therefore share one set:
   point is compiled (nothing calls them through one).
 
 :func:`kernel` is the decorator of the functions Python calls, :func:`inner` that of the functions only
-compiled code calls (without the CPython entry point either). ``fastmath`` is for the hot loops that do
-not allocate (:func:`wallcal.engines.modal._recursion`): it changes the flags.
+compiled code calls (without the CPython entry point either). ``fastmath`` (the modal recursion and input
+terms, the lambda(T) step) makes another set of flags: a numpy function called under it compiles again.
 """
 
 from __future__ import annotations
