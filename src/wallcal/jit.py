@@ -6,8 +6,9 @@ flags among the kernels that allocate costs another compilation of the same code
 therefore share one set:
 
 - they release the GIL (the engine runs parts of a batch in threads, :func:`wallcal.engines.fd.in_threads`);
-- division follows IEEE arithmetic (``error_model="numpy"``: inf or nan, no exception from inside a thread;
-  a wall the arithmetic cannot handle gives NaN outputs, which the callers check);
+- division follows IEEE arithmetic (``error_model="numpy"``: inf or nan, no exception raised inside a worker
+  thread; the walls reach the kernels checked, :func:`wallcal.grid.assemble_lines`, and the modal path
+  raises :class:`~wallcal.errors.EngineError` when a candidate's final state is not finite);
 - compiled results are cached on disk (``cache=True``, ``NUMBA_CACHE_DIR`` to relocate), and no C entry
   point is compiled (nothing calls them through one).
 
