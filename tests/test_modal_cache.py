@@ -1,6 +1,7 @@
 """The modal kernel calls LAPACK by name (wallcal.engines.lapack), so numba caches it: a fresh process with
 an empty kernel cache compiles it, the next fresh process loads it from the cache (no compilation) and
-gets the same simulation, bit for bit."""
+gets the same simulation, bit for bit. The command line's notice of a compilation (wallcal.cli.CompileNotice)
+is said in the first process and not in the second."""
 
 import json
 import os
@@ -10,14 +11,19 @@ from pathlib import Path
 
 import pytest
 
+from wallcal import cli
+
 EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "wallcal" / "examples" / "campaign_a" / "study.toml"
 
 PROBE = (
-    "import hashlib, json, sys, wallcal; from wallcal.engines import modal; "
+    "import hashlib, io, json, sys, wallcal; from numba.core import event; from wallcal import cli; "
+    "from wallcal.engines import modal; notice = cli.CompileNotice(io.StringIO(), after=0.5); "
+    "ctx = event.install_listener(cli.COMPILE_EVENT, notice); ctx.__enter__(); "
     "r = wallcal.simulate(wallcal.load_study(sys.argv[1])); "
-    "st = modal.modal_kernel.stats; "
+    "ctx.__exit__(None, None, None); notice.close(); st = modal.modal_kernel.stats; "
     "print(json.dumps({'path': r.info['path'], 'hits': sum(st.cache_hits.values()), "
-    "'misses': sum(st.cache_misses.values()), 'values': hashlib.sha256(r.simulated.to_numpy().tobytes()).hexdigest()}))"
+    "'misses': sum(st.cache_misses.values()), 'values': hashlib.sha256(r.simulated.to_numpy().tobytes()).hexdigest(), "
+    "'notice': notice.stream.getvalue()}))"
 )
 
 
@@ -36,3 +42,5 @@ def test_fresh_process_loads_the_modal_kernel_from_the_cache(tmp_path):
     assert (cold["hits"], cold["misses"]) == (0, 1)
     assert (warm["hits"], warm["misses"]) == (1, 0)
     assert warm["values"] == cold["values"]
+    assert cold["notice"] == cli.CompileNotice.MESSAGE + "\n"
+    assert warm["notice"] == ""

@@ -4,6 +4,9 @@ Each command module registers its sub-parser through ``register(subparsers)``
 and sets ``func(args) -> int``. Errors raised as :class:`WallcalError` are
 printed on one line (``wallcal: error: ...``) with exit status 2; ``--debug``
 shows the traceback instead. Ctrl-C exits with status 130 and a message.
+When numba has to compile the engine's kernels (the first run after installing
+or upgrading, or with an empty ``NUMBA_CACHE_DIR``), a command says so on stderr
+(:class:`CompileNotice`), unless it was given ``--quiet``.
 """
 
 from __future__ import annotations
@@ -11,8 +14,14 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import threading
+
+from numba.core import event
 
 from .errors import WallcalError
+
+#: numba's event of one compilation (its documented event API; a load from the kernel cache sends none)
+COMPILE_EVENT = "numba:compile"
 
 #: Modules that add commands (each has ``register(subparsers)``).
 COMMAND_MODULES = (
@@ -44,14 +53,65 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class CompileNotice(event.Listener):
+    """Says once, on ``stream``, that the engine's kernels are being compiled, when a compilation has been running
+    for ``after`` seconds: otherwise the first run after installing is silent for the ~10 s numba takes before any
+    progress line. Compilations that finish sooner, and loads from the cache, say nothing."""
+
+    MESSAGE = (
+        "wallcal: compiling the engine's kernels (once after installing or upgrading; later runs load them "
+        "from numba's cache)"
+    )
+
+    def __init__(self, stream=None, after: float = 2.0):
+        self.stream = stream or sys.stderr
+        self.after = after
+        self.depth = 0  # compilations under way (numba compiles a kernel's callees inside it)
+        self.said = False
+        self.timer: threading.Timer | None = None
+        self.lock = threading.Lock()
+
+    def on_start(self, ev):
+        with self.lock:
+            self.depth += 1
+            if self.depth == 1 and not self.said:
+                self.timer = threading.Timer(self.after, self._say)
+                self.timer.daemon = True
+                self.timer.start()
+
+    def on_end(self, ev):
+        with self.lock:
+            self.depth -= 1
+            if self.depth == 0 and self.timer is not None:
+                self.timer.cancel()
+                self.timer = None
+
+    def _say(self):
+        with self.lock:
+            if self.depth == 0 or self.said:
+                return
+            self.said = True
+        print(self.MESSAGE, file=self.stream, flush=True)
+
+    def close(self):
+        with self.lock:
+            if self.timer is not None:
+                self.timer.cancel()
+                self.timer = None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 1
+    notice = None if getattr(args, "quiet", False) else CompileNotice()
     try:
-        return int(args.func(args) or 0)
+        if notice is None:
+            return int(args.func(args) or 0)
+        with event.install_listener(COMPILE_EVENT, notice):
+            return int(args.func(args) or 0)
     except WallcalError as exc:
         if args.debug:
             raise
@@ -66,6 +126,9 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print("wallcal: interrupted; no partial output was left in place", file=sys.stderr)
         return 130
+    finally:
+        if notice is not None:
+            notice.close()
 
 
 if __name__ == "__main__":  # pragma: no cover
