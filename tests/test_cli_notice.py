@@ -25,28 +25,28 @@ def _said(notice, *compilations):
     with event.install_listener(cli.COMPILE_EVENT, notice):
         for c in compilations:
             _compile(*c)
-        time.sleep(0.15)  # a timer that was left running would fire here
+        time.sleep(0.15 if notice.after < 0.15 else notice.after + 0.1)  # a timer left running would fire here
     notice.close()
     return notice.stream.getvalue()
 
 
 def test_a_long_compilation_is_announced_once():
-    out = _said(cli.CompileNotice(io.StringIO(), after=0.05), (0.3, 0.1), (0.3,))
+    out = _said(cli.CompileNotice(io.StringIO(), after=0.05), (0.8, 0.1), (0.8,))
     assert out == cli.CompileNotice.MESSAGE + "\n"
 
 
 def test_short_compilations_say_nothing():
-    assert _said(cli.CompileNotice(io.StringIO(), after=0.2), (0.02,), (0.02, 0.02), (0.02,)) == ""
+    assert _said(cli.CompileNotice(io.StringIO(), after=1.0), (0.02,), (0.02, 0.02), (0.02,)) == ""
 
 
 def test_the_wait_counts_from_the_outermost_compilation():
-    # two nested compilations shorter than `after`, inside one longer than it: announced
-    assert _said(cli.CompileNotice(io.StringIO(), after=0.1), (0.15, 0.05)) == cli.CompileNotice.MESSAGE + "\n"
+    # a nested compilation shorter than `after`, inside one longer than it: announced
+    assert _said(cli.CompileNotice(io.StringIO(), after=0.1), (0.8, 0.05)) == cli.CompileNotice.MESSAGE + "\n"
 
 
 def test_the_command_line_announces_a_compilation_unless_quiet(monkeypatch, capsys, tmp_path):
     def fake_calibrate(args):
-        _compile(0.3)
+        _compile(0.8)
         return 0
 
     monkeypatch.setattr(calibrate_command, "run_calibrate", fake_calibrate)
