@@ -4,14 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..workflow import STAGES
 from .clusteropts import add_scheduler, executor_for
 
 
 def register(sub) -> None:
+    names = ", ".join(st.name for st in STAGES)
     p = sub.add_parser(
         "run",
-        help="the whole study: data, engines, grid, sensitivity, calibration, "
-        "cross-check, standards, identifiability, retrofit, and an HTML report",
+        help=f"the whole study ({names}) and an HTML report",
         description="Run every stage of the study and write DIR/index.html (self-contained) with "
         "each stage's machine-readable results in DIR/<stage>/. A failing optional "
         "stage is reported, not fatal.",
@@ -21,8 +22,7 @@ def register(sub) -> None:
     p.add_argument(
         "--skip",
         default="",
-        help="comma-separated stages to leave out "
-        "(data, engines, grid, sensitivity, calibration, crosscheck, standards, identifiability, retrofit)",
+        help=f"comma-separated stages to leave out ({names})",
     )
     p.add_argument("--engines", help="comma-separated engines (default: every available one)")
     p.add_argument("--quick", action="store_true", help="smaller grid study and swarm (a preview)")
