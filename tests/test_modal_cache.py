@@ -15,16 +15,25 @@ from wallcal import cli
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "wallcal" / "examples" / "campaign_a" / "study.toml"
 
-PROBE = (
-    "import hashlib, io, json, sys, wallcal; from numba.core import event; from wallcal import cli; "
-    "from wallcal.engines import modal; notice = cli.CompileNotice(io.StringIO(), after=0.5); "
-    "ctx = event.install_listener(cli.COMPILE_EVENT, notice); ctx.__enter__(); "
-    "r = wallcal.simulate(wallcal.load_study(sys.argv[1])); "
-    "ctx.__exit__(None, None, None); notice.close(); st = modal.modal_kernel.stats; "
-    "print(json.dumps({'path': r.info['path'], 'hits': sum(st.cache_hits.values()), "
-    "'misses': sum(st.cache_misses.values()), 'values': hashlib.sha256(r.simulated.to_numpy().tobytes()).hexdigest(), "
-    "'notice': notice.stream.getvalue()}))"
-)
+PROBE = """
+import hashlib, io, json, sys, wallcal
+from numba.core import event
+from wallcal import cli
+from wallcal.engines import modal
+
+notice = cli.CompileNotice(io.StringIO(), after=0.5)
+with event.install_listener(cli.COMPILE_EVENT, notice):
+    r = wallcal.simulate(wallcal.load_study(sys.argv[1]))
+notice.close()
+st = modal.modal_kernel.stats
+print(json.dumps({
+    "path": r.info["path"],
+    "hits": sum(st.cache_hits.values()),
+    "misses": sum(st.cache_misses.values()),
+    "values": hashlib.sha256(r.simulated.to_numpy().tobytes()).hexdigest(),
+    "notice": notice.stream.getvalue(),
+}))
+"""
 
 
 @pytest.mark.slow

@@ -12,6 +12,7 @@ or upgrading, or with an empty ``NUMBA_CACHE_DIR``), a command says so on stderr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
 import threading
@@ -82,9 +83,8 @@ class CompileNotice(event.Listener):
     def on_end(self, ev):
         with self.lock:
             self.depth -= 1
-            if self.depth == 0 and self.timer is not None:
-                self.timer.cancel()
-                self.timer = None
+            if self.depth == 0:
+                self._cancel()
 
     def _say(self):
         with self.lock:
@@ -95,9 +95,12 @@ class CompileNotice(event.Listener):
 
     def close(self):
         with self.lock:
-            if self.timer is not None:
-                self.timer.cancel()
-                self.timer = None
+            self._cancel()
+
+    def _cancel(self):  # (under the lock)
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -107,10 +110,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 1
     notice = None if getattr(args, "quiet", False) else CompileNotice()
+    listening = contextlib.nullcontext() if notice is None else event.install_listener(COMPILE_EVENT, notice)
     try:
-        if notice is None:
-            return int(args.func(args) or 0)
-        with event.install_listener(COMPILE_EVENT, notice):
+        with listening:
             return int(args.func(args) or 0)
     except WallcalError as exc:
         if args.debug:
