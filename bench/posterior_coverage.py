@@ -10,7 +10,7 @@ self-check said about the structure.
 
 Campaigns (their walls and errors are printed):
 
-- ``visible``: the EnergyPlus-made campaign of /work/shared/data/campaign_visible (truth.json; no structure
+- ``visible``: the EnergyPlus-made campaign of ../shared/data/campaign_visible (truth.json; no structure
   error, but EnergyPlus CondFD against wallcal's grid);
 - ``offset``, ``contact``, ``lambdaT``, ``all``: made here with the fd engine on a fine grid (time step 20 s,
   grid constant 0.5; the calibration runs at the study's 60 s and C = 2) from the true wall of campaign A with

@@ -12,7 +12,7 @@ two or more seeds, how far the runs' posterior means lie apart: with n effective
 two means is N(0, 2/n) posterior variances, so n ~ 0.91 / median(d^2) over the parameters (0.455, the median of a
 chi-square with one degree of freedom, times 2).
 
-    nice -n 19 .venv/bin/python bench/posterior_smc.py --workdir /work/tmp/cov19 --particles 1000 --seeds 1 2
+    nice -n 19 .venv/bin/python bench/posterior_smc.py --workdir cov19 --particles 1000 --seeds 1 2
 """
 
 from __future__ import annotations
