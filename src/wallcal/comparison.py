@@ -9,11 +9,13 @@ constant C and node rule (each may be overridden), on the same prepared data, an
   over the comparison timestamps [degC or W/m2];
 - the :class:`~wallcal.simulation.SimulationResult` of each engine.
 
-Engine names: ``fd-cn``, ``fd-implicit``, ``fd-reference``, ``energyplus`` (Crank-Nicolson, as in a study's
+Engine names: every engine of the registry (:func:`wallcal.engines.engine_names`): ``fd-cn``,
+``fd-implicit``, ``fd-reference``, ``energyplus`` (Crank-Nicolson, as in a study's
 ``simulation.engine = "energyplus"``), and ``energyplus-cn`` / ``energyplus-implicit`` to pick
-EnergyPlus' CondFD scheme explicitly.
+EnergyPlus' CondFD scheme explicitly. What this module needs to know about an engine (its scheme, which
+engine object runs it, the node rule it always uses) comes from its registry entry; it tests no name.
 
-The node rule applies to the ``fd-*`` engines only: EnergyPlus always places
+The node rule applies to the engines that take the input's (``fd-*``): EnergyPlus always places
 ``int(L / sqrt(C alpha dt))`` intervals per layer (the ``"energyplus"`` rule of
 :mod:`wallcal.grid`). With the study's defaults (``node_rule = "wallcal"``, C = 2) the fd
 engines therefore run a finer grid than EnergyPlus; ``node_rule="energyplus"`` makes the grids
@@ -23,7 +25,6 @@ identical node for node.
 from __future__ import annotations
 
 import itertools
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,8 +35,6 @@ from .errors import OptionalDependencyError, StudyError, closest
 from .metrics import METRIC_COLUMNS
 from .study import Study
 
-#: Engine names :func:`compare_engines` accepts.
-COMPARE_ENGINES = ("fd-cn", "fd-implicit", "fd-reference", "energyplus", "energyplus-cn", "energyplus-implicit")
 #: Metrics shown in Table IV (rows per sensor), in this order.
 TABLE_IV_METRICS = ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14")
 #: Long-table metric columns (``comparison.csv``): engine, signal, unit, then every metric.
@@ -140,16 +139,12 @@ class Comparison:
         return files
 
 
-def _engine_for(name: str):
-    """The engine object for a :data:`COMPARE_ENGINES` name (``energyplus-cn``/``-implicit``: EnergyPlus, whose
-    CondFD scheme follows the input's)."""
-    from .engines import get_engine
+def __getattr__(attr: str):
+    if attr == "COMPARE_ENGINES":  # engine names compare_engines accepts: every registered engine
+        from .engines import engine_names
 
-    return get_engine("energyplus" if name.startswith("energyplus") else name)
-
-
-def _scheme(name: str) -> str:
-    return "implicit" if name.endswith("implicit") else "cn"
+        return engine_names()
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
 def compare_engines(
@@ -168,7 +163,7 @@ def compare_engines(
     study : Study
         From :func:`wallcal.load_study`.
     engines : sequence of str
-        Names from :data:`COMPARE_ENGINES` (at least one).
+        Registered engine names (:func:`wallcal.engines.engine_names`; at least one).
     node_rule : str, optional
         ``"wallcal"`` or ``"energyplus"`` for the fd engines; default the study's. EnergyPlus
         always uses its own rule (the ``"energyplus"`` one).
@@ -217,73 +212,63 @@ def compare_many(
     they run in parallel. Same arguments and errors as :func:`compare_engines`; one :class:`Comparison` per study.
     """
     from .data import load_measurements
-    from .engines import get_engine
+    from .engines import engine_names, entry, get_engine
     from .simulation import prepare, result_from_output
 
+    known = engine_names()
     names = [str(e).strip() for e in engines if str(e).strip()]
     if not names:
-        raise StudyError([f"engines: give at least one of {', '.join(COMPARE_ENGINES)}"])
-    problems = [
-        f"engines: unknown engine {n!r}; {closest(n, COMPARE_ENGINES)}" for n in names if n not in COMPARE_ENGINES
-    ]
+        raise StudyError([f"engines: give at least one of {', '.join(known)}"])
+    problems = [f"engines: unknown engine {n!r}; {closest(n, known)}" for n in names if n not in known]
     dup = [n for n in dict.fromkeys(names) if names.count(n) > 1]
     if dup:
         problems.append(f"engines: {', '.join(map(repr, dup))} given more than once")
     if problems:
         raise StudyError(problems)
+    entries = {n: entry(n) for n in names}
+    runners = {e.runner: get_engine(e.runner) for e in entries.values()}  # one engine object per runner
 
     plans = []  # per study: (study, preps, {engine name: prepared data}, skipped)
-    eplus_jobs = []  # (study index, engine name, input): every EnergyPlus run, sent at once
+    jobs: dict[str, list] = {}  # runner -> [(study index, engine name, input)]: an engine's runs, sent at once
     for k, study in enumerate(studies):
         meas = load_measurements(study)
         preps: dict[str, object] = {}
         use, skipped = {}, {}
         for name in names:
-            scheme = _scheme(name)
-            if scheme not in preps:
+            scheme = entries[name].scheme
+            if scheme not in preps:  # the same data for every engine of a scheme
                 preps[scheme] = prepare(
                     study,
-                    "fd-implicit" if scheme == "implicit" else "fd-cn",
+                    name,
                     time_step=time_step,
                     grid_constant=grid_constant,
                     node_rule=node_rule,
                     measurements=meas,
                 )
-            eng = _engine_for(name)
-            why = eng.unavailable()
+            why = runners[entries[name].runner].unavailable()
             if why:
                 if not skip_missing:
                     raise OptionalDependencyError(why)
                 skipped[name] = why
                 continue
             use[name] = preps[scheme]
-            if name.startswith("energyplus"):
-                eplus_jobs.append((k, name, preps[scheme].inp))
+            jobs.setdefault(entries[name].runner, []).append((k, name, preps[scheme].inp))
         if not use:
             raise OptionalDependencyError("no engine could run: " + "; ".join(f"{a}: {b}" for a, b in skipped.items()))
         plans.append((study, preps, use, skipped))
-    eplus_out = {}
-    if eplus_jobs:
-        outs = get_engine("energyplus").run_inputs([inp for _, _, inp in eplus_jobs])
-        eplus_out = {(k, name): out for (k, name, _), out in zip(eplus_jobs, outs, strict=True)}
+    outputs = {}
+    for runner, todo in jobs.items():
+        outs = runners[runner].run_inputs([inp for _, _, inp in todo])
+        outputs.update({(k, name): out for (k, name, _), out in zip(todo, outs, strict=True)})
 
     comparisons = []
     for k, (study, preps, use, skipped) in enumerate(plans):
         results, seconds = {}, {}
         for name, prep in use.items():
-            if name.startswith("energyplus"):
-                out = eplus_out[(k, name)]
-                seconds[name] = float(out.info.get("seconds", float("nan")))
-            else:
-                eng = _engine_for(name)
-                t = time.perf_counter()
-                out = eng.run(eng.prepare(prep.inp))
-                seconds[name] = time.perf_counter() - t
-                out.info.setdefault("seconds", seconds[name])
+            out = outputs[(k, name)]
+            seconds[name] = float(out.info.get("seconds", float("nan")))
             res = result_from_output(prep, out, name)
-            res.info["node_rule"] = (
-                "energyplus (EnergyPlus' own)" if name.startswith("energyplus") else prep.inp.node_rule
-            )
+            res.info["node_rule"] = entries[name].node_rule or prep.inp.node_rule
             results[name] = res
         comparisons.append(_assemble(study, preps, results, skipped, seconds))
     return comparisons

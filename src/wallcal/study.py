@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .calibration.space import CALIBRATION_KEYS, ParameterSpace, parse_calibration
+from .engines import DEFAULT_ENGINE, engine_names
 from .errors import StudyError, closest
 from .schema import Problems, Table, describe, read_toml
 from .wall import Wall
@@ -35,7 +36,6 @@ __all__ = [
     "wall_to_dict",
 ]
 
-ENGINES = ("fd-cn", "fd-implicit", "fd-reference", "energyplus")
 BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "heat_flux")
 QUANTITIES = ("temperature", "heat_flux")
 TEMPERATURE_UNITS = ("degC", "K")
@@ -142,7 +142,7 @@ class PeriodSpec:
 class SimulationSpec:
     """Engine and grid settings."""
 
-    engine: str = "fd-cn"
+    engine: str = DEFAULT_ENGINE
     time_step: float = 60.0
     grid_constant: float = 2.0
     node_rule: str = "wallcal"
@@ -496,7 +496,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
     sim = SimulationSpec()
     if smt:
         sim = SimulationSpec(
-            engine=smt.str("engine", "fd-cn", choices=ENGINES) or "fd-cn",
+            engine=smt.str("engine", DEFAULT_ENGINE, choices=engine_names(in_studies=True)) or DEFAULT_ENGINE,
             time_step=smt.num("time_step", 60.0, gt=0.0, le=86400.0) or 60.0,
             grid_constant=smt.num("grid_constant", 2.0, gt=0.0, le=1000.0) or 2.0,
             node_rule=smt.str("node_rule", "wallcal", choices=("wallcal", "energyplus")) or "wallcal",

@@ -111,14 +111,13 @@ def _stage_data(ctx: RunContext, d: Path, so: StageOutput):
 
 
 def _available_engines(prepared) -> tuple[list[str], str]:
-    """Engines that can run the study, and why EnergyPlus cannot (empty when it runs): its own
-    :meth:`~wallcal.engines.base.Engine.problems` with the study's input, or that it is not installed."""
-    from .engines import get_engine
+    """The registry's base-case engines that can run the study, and why the others cannot (empty when every
+    one runs): each engine's own :meth:`~wallcal.engines.base.Engine.problems` with the study's input, or
+    that it is not installed."""
+    from .engines import available, engine_names
 
-    engines = ["fd-cn", "fd-implicit"]
-    eplus = get_engine("energyplus")
-    why = eplus.unavailable() or "; ".join(eplus.problems(prepared.inp))
-    return (engines, why) if why else (engines + ["energyplus"], "")
+    engines, why = available(engine_names(base_case=True), prepared.inp)
+    return engines, "; ".join(f"{name}: {reason}" for name, reason in why.items())
 
 
 def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
@@ -133,7 +132,7 @@ def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
     so.tables.append(("RMS difference between engines", comp.difference_matrix(), ()))
     so.figures.append(("Measured vs each engine", d / "comparison.png"))
     if why:
-        so.text.append(f"The base case ran in the fd engines only: {why}.")
+        so.text.append(f"The base case ran in {', '.join(ctx.engines)} only: {why}.")
     ctx.results["comparison"] = comp
     base = comp.results[ctx.engines[0]].metrics
     units = {s.name: ("W/m2" if s.quantity == "heat_flux" else "degC") for s in ctx.study.sensors}
@@ -255,6 +254,7 @@ def _stage_diagnose(ctx: RunContext, d: Path, so: StageOutput):
 
 def _stage_crosscheck(ctx: RunContext, d: Path, so: StageOutput):
     from .comparison import compare_engines
+    from .engines import DEFAULT_ENGINE
 
     cal = ctx.results.get("calibration")
     if cal is None:
@@ -266,7 +266,7 @@ def _stage_crosscheck(ctx: RunContext, d: Path, so: StageOutput):
     for label, wall in (("base case", ctx.study.wall), ("calibrated", cal.wall_opt)):
         comp = ctx.results.get("comparison") if label == "base case" else None  # the base case already ran
         if comp is None:
-            comp = compare_engines(ctx.study.replace(wall=wall), ctx.engines or ["fd-cn"])
+            comp = compare_engines(ctx.study.replace(wall=wall), ctx.engines or [DEFAULT_ENGINE])
         for eng, r in comp.results.items():
             met = r.metrics.set_index("signal")
             rows.append({"wall": label, "engine": eng, **{f"RMSE {t}": met.loc[t, "rmse"] for t in targets}})

@@ -132,7 +132,7 @@ def refine_with_energyplus(
 
     t0 = time.perf_counter()
     ev = Evaluator(prepared, space)
-    prep_e = prepare(study, "energyplus", measurements=prepared.measurements)
+    prep_e = prepare(study, study.simulation.engine, measurements=prepared.measurements)
     engine = prep_e.engine
     w = residual_weights(space.objective, ev.n_valid, ev.weights, ev.scale)
     prog = alg.Progress("EnergyPlus refinement", enabled=progress)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..engines import entry
 from ..errors import StudyError, WallcalError
 from ..simulation import BATCH_NEEDS, Prepared, prepare, simulate
 from ..study import Study, dump_wall, load_wall
@@ -290,7 +291,7 @@ def calibrate(
     x_opt = space.from_unit(rec.best_u)
     result = _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, rec, status)
     if refine is None:
-        refine = study.simulation.engine == "energyplus"
+        refine = entry(study.simulation.engine).refines_calibration
     if refine and status == "complete":
         from .refine import refine_with_energyplus
 

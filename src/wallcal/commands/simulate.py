@@ -8,6 +8,8 @@ from ..formatting import table
 
 
 def register(sub) -> None:
+    from ..engines import engine_names
+
     p = sub.add_parser(
         "simulate",
         help="simulate a study and compare with the measurements",
@@ -15,9 +17,7 @@ def register(sub) -> None:
         "measured-signal summary (Table III) and the error metrics (Table IV).",
     )
     p.add_argument("study", help="study file (TOML)")
-    p.add_argument(
-        "--engine", choices=("fd-cn", "fd-implicit", "fd-reference", "energyplus"), help="default: the study's"
-    )
+    p.add_argument("--engine", choices=engine_names(in_studies=True), help="default: the study's")
     p.add_argument("--time-step", type=float, metavar="S", help="time step [s]; default: the study's")
     p.add_argument("--grid-constant", type=float, metavar="C", help="C = dx^2/(alpha dt); default: the study's")
     p.add_argument("--node-rule", choices=("wallcal", "energyplus"), help="nodes per layer rule")

@@ -30,6 +30,7 @@ faces and inside the wall (see :mod:`wallcal.wall`).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -405,8 +406,14 @@ class Engine:
     def run_inputs(self, inputs: Sequence[SimulationInput]) -> list[EngineOutput]:
         """One run of each input's wall (inputs that may differ in anything: time step, grid, wall). This default
         runs them one after the other; an engine whose runs take seconds (EnergyPlus) sends them to the executor
-        of :mod:`wallcal.cluster`."""
-        return [self.run(self.prepare(inp)) for inp in inputs]
+        of :mod:`wallcal.cluster`. Each output's ``info["seconds"]`` is its run time [s] (preparing included)."""
+        outs = []
+        for inp in inputs:
+            t = time.perf_counter()
+            out = self.run(self.prepare(inp))
+            out.info.setdefault("seconds", time.perf_counter() - t)
+            outs.append(out)
+        return outs
 
     def simulate(self, inp: SimulationInput) -> EngineOutput:
         """``run(prepare(inp))``: one run of the input's wall."""
