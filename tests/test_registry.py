@@ -206,3 +206,88 @@ def test_the_name_test_finder_finds_name_tests():
         'ok = x == "wallcal"\n'
     )
     assert [line for line, _ in _name_tests(ast.parse(src), set(engines.engine_names()))] == [1, 2, 3, 4]
+
+
+# ----------------------------------------------------------------------------------------- feature tables
+FEATURE_PACKAGES = ("calibration", "retrofitting", "building", "analysis", "standards")
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """Every module ``path`` imports (at any depth of the file), absolute or relative (as written, dots kept)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = "." * node.level + (node.module or "")
+            out.add(base)
+            if not node.module:  # from . import x
+                out |= {base + a.name for a in node.names}
+    return out
+
+
+def test_study_core_imports_no_feature_package():
+    mods = _imported_modules(SRC / "study.py")
+    bad = sorted(
+        m for m in mods for pkg in FEATURE_PACKAGES if m.lstrip(".").split(".")[0] in (pkg,) or f"wallcal.{pkg}" in m
+    )
+    assert not bad, f"study.py imports feature packages: {bad}"
+
+
+def test_feature_tables_are_registered_and_a_toy_one_is_read_in_the_same_pass(tmp_path):
+    from wallcal import features
+    from wallcal.errors import StudyError
+    from wallcal.schema import Table
+    from wallcal.study import load_study
+
+    assert features.feature_keys()[:3] == ("calibration", "retrofit", "building")
+
+    def parse_toy(raw, problems, ctx):
+        t = Table(raw, "toy", problems, ("depth",))
+        depth = t.num("depth", gt=0.0)
+        if depth is not None and ctx.wall is not None and depth >= ctx.wall.thickness:
+            problems.add("toy.depth", f"must be inside the wall (< {ctx.wall.thickness:g} m)")
+        return depth
+
+    text = EXAMPLE.read_text().replace(
+        'file = "measured.csv"', f'file = "{(EXAMPLE.parent / "measured.csv").as_posix()}"'
+    )
+    text = text.replace('reference_wall = "true_wall.toml"', "")
+    path = tmp_path / "s.toml"
+    path.write_text(text + "\n[toy]\ndepth = 0.1\n")
+    with pytest.raises(StudyError, match=r"toy: unknown key"):  # not registered: an unknown top-level key
+        load_study(path)
+    features.register_feature("toy", parse_toy)
+    try:
+        assert load_study(path).features["toy"] == 0.1
+        path.write_text(
+            text.replace("conductivity = 0.040", "conductivity = -1.0") + "\n[toy]\ndepth = 9.0\ncolour = 1\n"
+        )
+        with pytest.raises(StudyError) as err:
+            load_study(path)
+        msg = str(err.value)
+        assert "wall.layers[0].conductivity" in msg and "toy.colour: unknown key" in msg  # one pass
+        path.write_text(text + "\n[toy]\ndepth = 9.0\n")
+        with pytest.raises(StudyError, match=r"toy.depth: must be inside the wall"):
+            load_study(path)
+    finally:
+        features.unregister_feature("toy")
+
+
+def test_a_feature_table_is_never_silently_none(tmp_path):
+    from wallcal import features
+    from wallcal.errors import StudyError
+    from wallcal.study import load_study
+
+    text = EXAMPLE.read_text().replace(
+        'file = "measured.csv"', f'file = "{(EXAMPLE.parent / "measured.csv").as_posix()}"'
+    )
+    text = text.replace('reference_wall = "true_wall.toml"', "")
+    path = tmp_path / "s.toml"
+    path.write_text(text + "\n[quiet]\nx = 1\n")
+    features.register_feature("quiet", lambda raw, problems, ctx: None)
+    try:
+        with pytest.raises(StudyError, match=r"quiet: the table could not be read"):
+            load_study(path)
+    finally:
+        features.unregister_feature("quiet")

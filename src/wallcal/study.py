@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .calibration.space import CALIBRATION_KEYS, ParameterSpace, parse_calibration
 from .engines import DEFAULT_ENGINE, engine_names
 from .errors import StudyError, closest
+from .features import StudyContext, feature_keys, parse_features
 from .schema import Problems, Table, describe, read_toml
 from .wall import Wall
 from .wallfile import FACES, WALL_KEYS, dump_wall, load_wall, parse_wall, wall_to_dict
@@ -153,9 +153,12 @@ class SimulationSpec:
 class Study:
     """A validated study. Build it with :func:`load_study`.
 
-    ``calibration`` is the ``[calibration]`` table, validated at load against the study's wall and
-    sensors (a frozen :class:`~wallcal.calibration.ParameterSpace`: base values and absolute bounds
-    from this wall), or None when the study has none.
+    The feature tables (:mod:`wallcal.features`) are in :attr:`features` (top-level key -> the feature's
+    spec), the three built in also as attributes: ``calibration`` is the ``[calibration]`` table, validated at
+    load against the study's wall and sensors (a frozen :class:`~wallcal.calibration.ParameterSpace`: base
+    values and absolute bounds from this wall), ``retrofit`` the ``[retrofit]`` table
+    (:class:`~wallcal.retrofitting.config.RetrofitSpec`), ``building`` the ``[building]`` table
+    (:class:`~wallcal.building.config.BuildingSpec`); each None when the study has no such table.
     """
 
     name: str
@@ -167,9 +170,10 @@ class Study:
     period: PeriodSpec
     simulation: SimulationSpec
     description: str = ""
-    calibration: ParameterSpace | None = None
+    calibration: Any = None  # wallcal.calibration.ParameterSpace, from the [calibration] table
     retrofit: Any = None  # wallcal.retrofitting.config.RetrofitSpec, from the [retrofit] table
     building: Any = None  # wallcal.building.config.BuildingSpec, from the [building] table
+    features: dict = field(default_factory=dict, compare=False, repr=False)
     path: Path | None = None
     raw: dict = field(default_factory=dict, compare=False, repr=False)
     sha256: str = ""
@@ -187,18 +191,8 @@ class Study:
 
 
 # ============================================================================ the study
-TOP_KEYS = (
-    "study",
-    "wall",
-    "data",
-    "boundary",
-    "sensors",
-    "period",
-    "simulation",
-    "calibration",
-    "retrofit",
-    "building",
-)
+#: The core's top-level keys; the feature tables' keys come from :mod:`wallcal.features`.
+CORE_KEYS = ("study", "wall", "data", "boundary", "sensors", "period", "simulation")
 STUDY_KEYS = ("name", "description")
 DATA_KEYS = (
     "file",
@@ -312,7 +306,7 @@ def load_study(path: str | Path) -> Study:
 def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = None) -> Study:
     """Validate a study given as a dict (the parsed TOML)."""
     problems = Problems()
-    top = Table(raw, "", problems, TOP_KEYS)
+    top = Table(raw, "", problems, CORE_KEYS + feature_keys())
     st = top.table("study", STUDY_KEYS, required=False)
     name = (st.str("name", "") if st else "") or ""
     desc = (st.str("description", "") if st else "") or ""
@@ -502,22 +496,8 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             node_rule=smt.str("node_rule", "wallcal", choices=("wallcal", "energyplus")) or "wallcal",
             stiff_limit=smt.num("stiff_limit", None, gt=0.0),
         )
-    calib = None
-    if top.has("calibration"):
-        ct = top.table("calibration", CALIBRATION_KEYS)
-        calib = parse_calibration(
-            ct, problems, wall if wall_clean else None, sensors, sensor_names=sensor_names, base_dir=base_dir
-        )
-    retrofit = None
-    if top.has("retrofit"):
-        from .retrofitting.config import parse_retrofit
-
-        retrofit = parse_retrofit(top.raw("retrofit"), problems, base_dir, wall)
-    building = None
-    if top.has("building"):
-        from .building.config import parse_building
-
-        building = parse_building(top.raw("building"), problems, base_dir)
+    ctx = StudyContext(wall, wall_clean, tuple(sensors), frozenset(sensor_names), base_dir)
+    features = parse_features(raw if isinstance(raw, dict) else {}, problems, ctx)
 
     if problems:
         raise StudyError(problems, source=source)
@@ -533,9 +513,10 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         sensors=tuple(sensors),
         period=period,
         simulation=sim,
-        calibration=calib,
-        retrofit=retrofit,
-        building=building,
+        calibration=features.get("calibration"),
+        retrofit=features.get("retrofit"),
+        building=features.get("building"),
+        features=features,
         raw=raw,
     )
     return study

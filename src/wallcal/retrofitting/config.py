@@ -279,7 +279,8 @@ def parse_retrofit(raw: Any, problems: Problems, base_dir: Path | None, wall: Wa
             continue
         v = VariantSpec(name=name, add_exterior=add_e, add_interior=add_i, remove=remove, replace=replace, path=vt.path)
         variants.append(v)
-    if weather is None or any(v is None for v in kw.values() if not isinstance(v, bool)):
+    optional = ("interior_relative_humidity", "interior_humidity_class")  # one of them is None by design
+    if weather is None or any(v is None for k, v in kw.items() if k not in optional and not isinstance(v, bool)):
         return None
     return RetrofitSpec(weather=weather, weather_path=wpath, variants=tuple(variants), raw=dict(raw), **kw)
 
