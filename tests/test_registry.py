@@ -291,3 +291,59 @@ def test_a_feature_table_is_never_silently_none(tmp_path):
             load_study(path)
     finally:
         features.unregister_feature("quiet")
+
+
+# ----------------------------------------------------------------------------------------- boundary types
+def test_boundary_types_are_one_list():
+    from wallcal.engines import base, boundary, boundary_types
+
+    assert boundary_types.boundary_type_names(in_studies=True) == (
+        "surface_temperature",
+        "air_temperature",
+        "heat_flux",
+    )
+    assert base.BOUNDARY_TYPES == boundary_types.boundary_type_names()
+    assert dict(boundary.CODES) == {
+        "surface_temperature": 0,
+        "air_temperature": 1,
+        "sol_air_temperature": 1,
+        "heat_flux": 2,
+    }
+    src = (SRC / "study.py").read_text()
+    assert "BOUNDARY_TYPES" not in src and "sol_air_temperature" not in src
+
+
+def test_a_toy_boundary_type_is_one_registration(tmp_path):
+    """A Robin face exchanging with the measured surface temperature through a very large coefficient: the
+    study loader takes it (with its surface coefficient required), and fd-cn runs it as the imposed surface
+    temperature within a few mK."""
+    from wallcal.engines import boundary_types
+    from wallcal.errors import StudyError
+    from wallcal.simulation import simulate
+    from wallcal.study import load_study
+
+    text = EXAMPLE.read_text().replace(
+        'file = "measured.csv"', f'file = "{(EXAMPLE.parent / "measured.csv").as_posix()}"'
+    )
+    text = text.replace('reference_wall = "true_wall.toml"', "")
+    toy = text.replace(
+        '[boundary.interior]\ntype = "surface_temperature"',
+        '[boundary.interior]\ntype = "stiff_film"\nsurface_coefficient = 1e6',
+    )
+    assert toy != text
+    path = tmp_path / "s.toml"
+    path.write_text(toy)
+    with pytest.raises(StudyError, match=r"boundary.interior.type"):
+        load_study(path)
+    boundary_types.register_boundary_type("stiff_film", "robin", "temperature", description="a toy")
+    try:
+        study = load_study(path)
+        assert study.interior.type == "stiff_film" and study.interior.surface_coefficient == 1e6
+        res = simulate(study, "fd-cn")
+        ref = simulate(load_study(EXAMPLE), "fd-cn")
+        assert np.abs(res.simulated["T1A"] - ref.simulated["T1A"]).max() < 5e-3
+        path.write_text(toy.replace("surface_coefficient = 1e6\n", ""))
+        with pytest.raises(StudyError, match=r"boundary.interior.surface_coefficient: required"):
+            load_study(path)
+    finally:
+        boundary_types.unregister_boundary_type("stiff_film")

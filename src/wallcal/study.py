@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .engines import DEFAULT_ENGINE, engine_names
+from .engines.boundary_types import boundary_type, boundary_type_names
 from .errors import StudyError, closest
 from .features import StudyContext, feature_keys, parse_features
 from .schema import Problems, Table, describe, read_toml
@@ -36,7 +37,6 @@ __all__ = [
     "wall_to_dict",
 ]
 
-BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "heat_flux")
 QUANTITIES = ("temperature", "heat_flux")
 TEMPERATURE_UNITS = ("degC", "K")
 FLUX_DIRECTIONS = ("towards_interior", "towards_exterior")
@@ -48,7 +48,8 @@ TIME_FORMATS = ("iso", "elapsed_seconds")
 class BoundarySpec:
     """A face's boundary condition as the study states it.
 
-    ``type``: surface_temperature | air_temperature | heat_flux; ``column``: data
+    ``type``: a boundary type a study may name (:mod:`wallcal.engines.boundary_types`: surface_temperature |
+    air_temperature | heat_flux); ``column``: data
     column; ``surface_coefficient`` [W/(m2K)] for air_temperature; ``unit``:
     degC | K for temperatures; ``positive``: direction of a heat-flux column;
     ``offset``: added to the column after the unit and sign conversion (a declared
@@ -362,22 +363,28 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             ft = bt.table(face, BOUNDARY_KEYS)
             if not ft:
                 continue
-            btype = ft.str("type", choices=BOUNDARY_TYPES)
+            btype = ft.str("type", choices=boundary_type_names(in_studies=True))
+            bkind = boundary_type(btype) if btype else None
             col = ft.str("column")
             h = None
-            if btype == "air_temperature":
+            robin, flux = (
+                " or ".join(f'"{n}"' for n in boundary_type_names(in_studies=True) if test(boundary_type(n)))
+                for test in (lambda t: t.needs_surface_coefficient, lambda t: t.quantity == "heat_flux")
+            )
+            if bkind is not None and bkind.needs_surface_coefficient:
                 h = ft.num("surface_coefficient", gt=0.0)
             elif ft.has("surface_coefficient"):
-                problems.add(ft.at("surface_coefficient"), f'only for type = "air_temperature", not {btype!r}')
-            if btype == "heat_flux":
+                problems.add(ft.at("surface_coefficient"), f"only for type = {robin}, not {btype!r}")
+            is_flux = bkind is not None and bkind.quantity == "heat_flux"
+            if is_flux:
                 unit = ft.str("unit", "W/m2", choices=("W/m2",))
                 if ft.has("unit") and unit is None:
                     unit = "W/m2"
             else:
                 unit = ft.str("unit", "degC", choices=TEMPERATURE_UNITS)
             positive = ft.str("positive", "towards_interior", choices=FLUX_DIRECTIONS)
-            if ft.has("positive") and btype != "heat_flux":
-                problems.add(ft.at("positive"), 'only for type = "heat_flux"')
+            if ft.has("positive") and not is_flux:
+                problems.add(ft.at("positive"), f"only for type = {flux}")
             offset = ft.num("offset", 0.0, ge=-1e6, le=1e6)
             if btype and col:
                 bounds[face] = BoundarySpec(
@@ -389,7 +396,7 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
                     positive=positive or "towards_interior",
                     offset=offset or 0.0,
                 )
-        if all(b is not None and b.type == "heat_flux" for b in bounds.values()):
+        if all(b is not None and not boundary_type(b.type).fixes_temperature_level for b in bounds.values()):
             problems.add(
                 "boundary",
                 "heat-flux boundaries on both faces leave the temperature level undetermined: "

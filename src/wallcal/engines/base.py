@@ -40,8 +40,11 @@ import pandas as pd
 from ..errors import EngineError
 from ..grid import PropertyArrays
 from ..wall import Wall
+from .boundary_types import BUILT_IN as BUILT_IN_BOUNDARY_TYPES
+from .boundary_types import boundary_type_names
 
-BOUNDARY_TYPES = ("surface_temperature", "air_temperature", "sol_air_temperature", "heat_flux")
+#: The built-in boundary types (the registry, :mod:`wallcal.engines.boundary_types`, has every one).
+BOUNDARY_TYPES = BUILT_IN_BOUNDARY_TYPES
 FACES = ("exterior", "interior")
 
 
@@ -280,8 +283,9 @@ class Capabilities:
         Contact resistances between layers.
     massless_layers : bool
         No-mass (resistance-only) layers.
-    boundary_types : tuple of str
-        Boundary types accepted at both faces.
+    boundary_types : tuple of str or None
+        Boundary types accepted at both faces; None: every registered one
+        (:mod:`wallcal.engines.boundary_types`).
     any_time_step : bool
         Every positive time step (otherwise see :meth:`Engine.check_time_step`).
     substitute : str or None
@@ -298,11 +302,15 @@ class Capabilities:
     flux_at_depth: bool
     contact_resistance: bool
     massless_layers: bool
-    boundary_types: tuple[str, ...] = BOUNDARY_TYPES
+    boundary_types: tuple[str, ...] | None = None
     any_time_step: bool = True
     substitute: str | None = None
     substitute_verified: str = ""
     initial_state: bool = False
+
+    def accepted_boundary_types(self) -> tuple[str, ...]:
+        """The boundary types this engine accepts (every registered one unless it lists its own)."""
+        return boundary_type_names() if self.boundary_types is None else self.boundary_types
 
     def lacks(self, needs: Sequence[str]) -> list[str]:
         """The capabilities among ``needs`` (attribute names) this engine does not have."""
@@ -347,10 +355,11 @@ class Engine:
         cap, out = self.capabilities, []
         for face in FACES:
             b = getattr(inp, face)
-            if b.type not in cap.boundary_types:
+            accepted = cap.accepted_boundary_types()
+            if b.type not in accepted:
                 hint = f" (use the {cap.substitute} engine for it)" if cap.substitute else ""
                 out.append(
-                    f"the {self.name} engine supports only {' and '.join(map(repr, cap.boundary_types))} "
+                    f"the {self.name} engine supports only {' and '.join(map(repr, accepted))} "
                     f"boundaries; the {face} face has {b.type!r}{hint}"
                 )
         why = self.check_time_step(float(inp.time_step))

@@ -25,25 +25,42 @@ Every path asks this module what a face contributes: to the operator (:func:`fac
 (:func:`step_flux`), to the modal path's flux rows (:func:`flux_row`), to the steady-state guess
 and the face-flux outputs (:func:`imposes_flux`). A new type (say an exterior face with absorbed
 solar radiation and long-wave exchange, linearised: a Robin face with an equivalent temperature
-and a radiative coefficient) is a new code here, its branch in each of these functions, and its
-entry in :data:`CODES` / :func:`face_parameters`.
+and a radiative coefficient) that is one of the three kinds with another input is one registration in
+:mod:`wallcal.engines.boundary_types` (its code follows from its kind); a new kind is a new code here and its
+branch in each of these functions.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from ..jit import inner, kernel
+from .boundary_types import boundary_type, boundary_type_names
 
 SURFACE_TEMPERATURE = 0
 AIR_TEMPERATURE = 1
 HEAT_FLUX = 2
 
+#: kind of a registered boundary type (:mod:`wallcal.engines.boundary_types`) -> kernel code
+KIND_CODES = {"dirichlet": SURFACE_TEMPERATURE, "robin": AIR_TEMPERATURE, "neumann": HEAT_FLUX}
+
+
+class _Codes(Mapping):
+    """Boundary type name -> kernel code, for every registered type (read from the registry, so a type
+    registered later has its code)."""
+
+    def __getitem__(self, name: str) -> int:
+        return KIND_CODES[boundary_type(name).kind]
+
+    def __iter__(self):
+        return iter(boundary_type_names())
+
+    def __len__(self) -> int:
+        return len(boundary_type_names())
+
+
 #: boundary type names of the study file / :class:`~wallcal.engines.base.BoundaryInput` -> kernel code
-CODES = {
-    "surface_temperature": SURFACE_TEMPERATURE,
-    "air_temperature": AIR_TEMPERATURE,
-    "sol_air_temperature": AIR_TEMPERATURE,
-    "heat_flux": HEAT_FLUX,
-}
+CODES = _Codes()
 
 
 def face_parameters(kind: str, surface_coefficient: float | None) -> tuple[int, float]:
