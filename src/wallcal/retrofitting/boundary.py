@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..engines.base import BoundaryInput
-from .weather import SIGMA, Weather, plane_irradiance, sky_temperature
+from ..weather import SIGMA, Weather, plane_irradiance, sky_temperature
 
 
 def sol_air_temperature(

@@ -71,7 +71,7 @@ class RetrofitSpec:
         As written in the study: a path relative to the study, or the name of a shipped weather file.
     weather_path : Path or None
         ``weather`` resolved against the study's folder when such a file exists, else None (then it names a
-        shipped file; :func:`wallcal.retrofitting.weather.resolve_weather` decides).
+        shipped file; :func:`wallcal.weather.resolve_weather` decides).
     azimuth : float
         Outward normal of the wall, degrees clockwise from north (180 = facing south).
     solar_absorptance : float

@@ -32,6 +32,7 @@ import pandas as pd
 
 from ..errors import StudyError
 from ..wall import Wall
+from ..weather import dew_point_of_pressure, saturation_pressure
 
 DELTA_0 = 2e-10  # water vapour permeability of air [kg/(m s Pa)] (ISO 13788 6.2, ISO 10456)
 RSI_MOULD = 0.25  # interior surface resistance for surface humidity [m2K/W] (ISO 13788 4.2.2 / Table 1)
@@ -40,26 +41,6 @@ CRITICAL_SURFACE_RH = 0.8  # mould criterion
 HUMIDITY_CLASS_DP = {1: 270.0, 2: 540.0, 3: 810.0, 4: 1080.0, 5: 1350.0}  # Annex A, Pa at theta_e <= 0
 SAFETY_FACTOR = 1.10
 MIN_SD = 1e-4  # smallest s_d of a sub-layer [m] (a no-mass layer without thickness)
-
-
-def saturation_pressure(theta):
-    """Saturation water vapour pressure [Pa] over water (theta >= 0) or ice (theta < 0); ISO 13788 Annex E."""
-    th = np.asarray(theta, dtype=float)
-    warm = th >= 0
-    out = np.where(
-        warm,
-        610.5 * np.exp(17.269 * th / (237.3 + np.where(warm, th, 0.0))),
-        610.5 * np.exp(21.875 * th / (265.5 + np.where(warm, 0.0, th))),
-    )
-    return float(out) if out.ndim == 0 else out
-
-
-def dew_point_of_pressure(p):
-    """Temperature [degC] at which p_sat equals ``p`` [Pa] (inverse of :func:`saturation_pressure`)."""
-    p = np.asarray(p, dtype=float)
-    x = np.log(p / 610.5)
-    out = np.where(p >= 610.5, 237.3 * x / (17.269 - x), 265.5 * x / (21.875 - x))
-    return float(out) if out.ndim == 0 else out
 
 
 def humidity_class_excess(theta_e, humidity_class: int):

@@ -34,9 +34,9 @@ import pandas as pd
 
 from ..errors import DataError, StudyError
 from ..wall import Probe, Wall
+from ..weather import Weather, monthly_climate, read_weather, resolve_weather
 from .boundary import YearBoundaries, year_boundaries
 from .config import RetrofitSpec, VariantSpec, apply_variant
-from .weather import Weather, monthly_climate, read_weather, resolve_weather
 
 #: Periodic state: largest change of any node temperature over one pass [K]
 PERIODIC_TOLERANCE = 1e-3

