@@ -188,8 +188,8 @@ def prepare(
     """
     sim = study.simulation
     requested = engine or sim.engine
-    dt = float(time_step or sim.time_step)
-    C = float(grid_constant or sim.grid_constant)
+    dt = float(sim.time_step if time_step is None else time_step)  # an explicit 0 is checked, not replaced
+    C = float(sim.grid_constant if grid_constant is None else grid_constant)
     if dt <= 0 or not math.isfinite(dt):
         raise StudyError([f"simulation.time_step: must be > 0, got {dt}"])
     if C <= 0 or not math.isfinite(C):

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..engines.base import BoundaryInput
+from ..errors import StudyError
 from ..weather import SIGMA, Weather, plane_irradiance, sky_temperature
 
 
@@ -114,7 +115,9 @@ def year_boundaries(weather: Weather, spec, time_step: float | None = None) -> Y
     fields, air temperature at the hour's middle) is spread onto the marks by :func:`_marks_from_means`, so
     that the energy it brings over the year is kept exactly. Between marks the engine grid is linear.
     """
-    dt = float(time_step or spec.time_step)
+    dt = float(spec.time_step if time_step is None else time_step)
+    if not (dt > 0 and math.isfinite(dt)) or abs(3600.0 / dt - round(3600.0 / dt)) > 1e-9:
+        raise StudyError([f"retrofit.time_step: must be a positive divisor of 3600 s, got {dt:g}"])
     d = weather.data
     n = len(d)
     t_rows = d["temp_air"].to_numpy(dtype=float)
