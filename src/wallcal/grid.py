@@ -27,12 +27,12 @@ outputs are smooth functions of the properties.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from .engines.base import PropertyArrays  # the contract's type, taken by assemble()
 from .errors import StudyError
 from .jit import kernel
 from .wall import Wall
@@ -192,59 +192,7 @@ def build_grid(
 
 
 # ---------------------------------------------------------------------------- properties on the grid
-@dataclass
-class PropertyArrays:
-    """Layer properties of a batch of candidate walls, shape (n_candidates, n_layers).
-
-    Units: thickness [m], conductivity [W/(m K)] at reference temperature,
-    volumetric_heat_capacity [J/(m3 K)], temperature coefficient [1/K],
-    reference temperature [degC], contact and thermal resistances [m2K/W].
-    """
-
-    thickness: np.ndarray
-    conductivity: np.ndarray
-    volumetric_heat_capacity: np.ndarray
-    temperature_coefficient: np.ndarray
-    reference_temperature: np.ndarray
-    contact_resistance: np.ndarray
-    thermal_resistance: np.ndarray
-
-    @property
-    def n_candidates(self) -> int:
-        return self.conductivity.shape[0]
-
-    def take(self, index) -> PropertyArrays:
-        """The candidates at ``index`` (an integer array or a boolean mask)."""
-        return PropertyArrays(**{f.name: getattr(self, f.name)[index] for f in dataclasses.fields(self)})
-
-    def line_arrays(self) -> tuple[np.ndarray, ...]:
-        """The arrays :func:`assemble_lines` takes: thickness, conductivity, volumetric heat capacity, contact
-        and thermal resistance, temperature coefficient."""
-        return (
-            self.thickness,
-            self.conductivity,
-            self.volumetric_heat_capacity,
-            self.contact_resistance,
-            self.thermal_resistance,
-            self.temperature_coefficient,
-        )
-
-    @classmethod
-    def from_walls(cls, walls: list[Wall]) -> PropertyArrays:
-        """Stack the layer properties of walls with the same layer structure."""
-
-        def arr(fn):
-            return np.array([[fn(layer) for layer in w.layers] for w in walls], dtype=float)
-
-        return cls(
-            thickness=arr(lambda L: L.thickness),
-            conductivity=arr(lambda L: 0.0 if L.is_massless else L.conductivity_at(L.reference_temperature)),
-            volumetric_heat_capacity=arr(lambda L: L.volumetric_heat_capacity),
-            temperature_coefficient=arr(lambda L: L.conductivity_temperature_coefficient),
-            reference_temperature=arr(lambda L: L.reference_temperature),
-            contact_resistance=arr(lambda L: L.contact_resistance),
-            thermal_resistance=arr(lambda L: L.thermal_resistance if L.is_massless else 0.0),
-        )
+# PropertyArrays (the layer properties of a batch of walls) is part of the engine contract: wallcal.engines.base.
 
 
 #: Smallest contact resistance represented [m2K/W]; a contact link calibrated down to 0 uses this.

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from ..engines.base import PropertyArrays
 from ..errors import StudyError, closest
-from ..grid import PropertyArrays
 from ..schema import Problems, Table, check_number, describe
 from ..wall import Wall
 from ..wallfile import load_wall

@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..grid import MIN_CONTACT_RESISTANCE, PropertyArrays
+from ..grid import MIN_CONTACT_RESISTANCE
 from ..standards.iso10456 import temperature_factor
 from ..wall import Wall
+from .base import PropertyArrays
 
 #: Half-distance [m] of the three temperatures that give a heat flux inside the wall
 FLUX_PROBE_SPACING = 1e-3
