@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..conductivity import conductivity
 from ..grid import MIN_CONTACT_RESISTANCE
-from ..standards.iso10456 import temperature_factor
 from ..wall import Wall
 from .base import PropertyArrays
 
@@ -86,13 +86,13 @@ def _conductivity(wall: Wall, props: PropertyArrays, li: int, temperature: np.nd
     layer = wall.layers[li]
     if layer.is_massless:
         return layer.thickness / props.thermal_resistance[:, li, None] if layer.thickness > 0 else np.inf
-    lam0 = props.conductivity[:, li, None]
-    if layer.conductivity_table is not None:  # the candidate's conductivity scales the table
-        tab = np.asarray(layer.conductivity_table, dtype=float)
-        ref = np.interp(props.reference_temperature[:, li, None], tab[:, 0], tab[:, 1])
-        return lam0 * np.interp(temperature, tab[:, 0], tab[:, 1]) / ref
-    f = props.temperature_coefficient[:, li, None]
-    return lam0 * temperature_factor(f, temperature - props.reference_temperature[:, li, None])
+    return conductivity(
+        props.conductivity[:, li, None],
+        props.temperature_coefficient[:, li, None],
+        props.reference_temperature[:, li, None],
+        temperature,
+        layer.conductivity_table,  # the candidate's conductivity scales the table
+    )
 
 
 def flux_at_depth(

@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 from numba import uint64
 
+from ..conductivity import exponential_factor_inner
 from ..grid import LAMBDA_CONSTANT, LAMBDA_EXPONENTIAL, LAMBDA_TABLE
 from ..jit import inner, kernel
 from . import boundary, operator
@@ -49,7 +50,7 @@ def _link_factor(kind, coef, tref, tab_start, tab_len, tab_T, tab_v, temp):
     if kind == LAMBDA_CONSTANT:
         return 1.0
     if kind == LAMBDA_EXPONENTIAL:
-        return np.exp(coef * (temp - tref))
+        return exponential_factor_inner(coef, temp - tref)
     # table, constant beyond its ends
     s = tab_start
     n = tab_len
@@ -106,9 +107,9 @@ def _update_conductances(g, g_ref, kind, coef, tref, tab_start, tab_len, tab_T, 
             f = coef[lnk]
             d = f * (ta - tb)
             if abs(d) > 1e-4:
-                fac = (np.exp(f * (ta - tref[lnk])) - np.exp(f * (tb - tref[lnk]))) / d
+                fac = (exponential_factor_inner(f, ta - tref[lnk]) - exponential_factor_inner(f, tb - tref[lnk])) / d
             else:
-                fac = np.exp(f * (0.5 * (ta + tb) - tref[lnk])) * (1.0 + d * d / 24.0)
+                fac = exponential_factor_inner(f, 0.5 * (ta + tb) - tref[lnk]) * (1.0 + d * d / 24.0)
         else:
             fac = _table_mean(tab_start[lnk], tab_len[lnk], tab_T, tab_v, ta, tb)
         g[lnk] = g_ref[lnk] * fac
@@ -287,7 +288,7 @@ def _exp_step(x):
 def _exact_factors(coef, tref, g_ref, Tmid, Gm):
     """Link factors g_ref exp(f (T_m - T_ref)) at the link's mean temperature T_m = (T_a + T_b) / 2."""
     for lnk in range(Gm.shape[0]):
-        Gm[lnk] = g_ref[lnk] * np.exp(coef[lnk] * (0.5 * (Tmid[lnk] + Tmid[lnk + 1]) - tref[lnk]))
+        Gm[lnk] = g_ref[lnk] * exponential_factor_inner(coef[lnk], 0.5 * (Tmid[lnk] + Tmid[lnk + 1]) - tref[lnk])
 
 
 @inner(fastmath=True)
@@ -315,8 +316,8 @@ def _nonlinear_conductances(gs, g_ref, kind, coef, tref, tab_start, tab_len, tab
         if u <= SINHC_U_MAX:
             gs[lnk] = Gm[lnk] * _sinhc(u)
         else:
-            ea = np.exp(coef[lnk] * (Tmid[lnk] - tref[lnk]))
-            eb = np.exp(coef[lnk] * (Tmid[lnk + 1] - tref[lnk]))
+            ea = exponential_factor_inner(coef[lnk], Tmid[lnk] - tref[lnk])
+            eb = exponential_factor_inner(coef[lnk], Tmid[lnk + 1] - tref[lnk])
             gs[lnk] = g_ref[lnk] * ((ea - eb) / d)
     if not has_table:
         return

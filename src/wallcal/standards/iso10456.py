@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..conductivity import exponential_factor
+
 
 def temperature_factor(coefficient_per_K, delta_T_K):
     """Temperature conversion factor F_T = exp(f_T * dT).
@@ -30,7 +32,7 @@ def temperature_factor(coefficient_per_K, delta_T_K):
     float or array
         F_T [-].
     """
-    return np.exp(np.asarray(coefficient_per_K) * np.asarray(delta_T_K))
+    return exponential_factor(np.asarray(coefficient_per_K), np.asarray(delta_T_K))
 
 
 def convert_conductivity(conductivity, from_temperature_C, to_temperature_C, coefficient_per_K):
