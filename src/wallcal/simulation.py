@@ -407,7 +407,7 @@ def simulate(
     study : Study
         From :func:`wallcal.load_study`.
     engine : str, optional
-        ``"fd-cn"``, ``"fd-implicit"`` or ``"energyplus"``; default the study's.
+        A registered engine name (:func:`wallcal.engines.engine_names`); default the study's.
     time_step : float, optional
         [s]
     grid_constant : float, optional
