@@ -1,4 +1,4 @@
-"""Engines by name: ``fd-cn``, ``fd-implicit``, ``fd-reference`` (built in) and ``energyplus`` (optional extra).
+"""Engines by name: ``fd-cn``, ``fd-implicit``, ``fd-exact``, ``fd-reference`` (built in) and ``energyplus`` (optional extra).
 
 Every engine implements the contract of :mod:`wallcal.engines.base`. :func:`engine_for` is the one
 place where a task that needs a capability (calibration: batches) gets an engine that has it, with
@@ -23,12 +23,12 @@ from .base import (
     WallBatch,
 )
 
-ENGINE_NAMES = ("fd-cn", "fd-implicit", "fd-reference", "energyplus")
+ENGINE_NAMES = ("fd-cn", "fd-implicit", "fd-exact", "fd-reference", "energyplus")
 
 
 def _registered(name: str) -> tuple[type[Engine], dict]:
     """The class of engine ``name`` and its constructor arguments (the one list of engines)."""
-    if name in ("fd-cn", "fd-implicit"):
+    if name in ("fd-cn", "fd-implicit", "fd-exact"):
         from .fd import FDEngine
 
         return FDEngine, {"scheme": scheme_of(name)}
@@ -56,6 +56,8 @@ def engine_class(name: str) -> type[Engine]:
 
 def scheme_of(name: str) -> str:
     """Time scheme implied by an engine name ("cn" unless the name says implicit)."""
+    if name.endswith("exact"):
+        return "exact"
     return "implicit" if name.endswith("implicit") else "cn"
 
 
