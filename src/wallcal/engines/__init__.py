@@ -1,4 +1,4 @@
-"""Engines by name: ``fd-cn``, ``fd-implicit``, ``fd-exact``, ``fd-reference`` (built in) and ``energyplus`` (optional extra).
+"""Engines by name: ``fd-cn``, ``fd-implicit``, ``fd-exact``, ``fd-reference`` (built in), ``energyplus`` (an extra).
 
 Every engine implements the contract of :mod:`wallcal.engines.base`. :func:`engine_for` is the one
 place where a task that needs a capability (calibration: batches) gets an engine that has it, with
