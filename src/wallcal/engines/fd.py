@@ -1,4 +1,4 @@
-"""The finite-volume engine ``fd`` (``fd-cn``: Crank-Nicolson, ``fd-implicit``: fully implicit).
+"""The finite-volume engine ``fd`` (``fd-cn``: Crank-Nicolson, ``fd-implicit``: fully implicit, ``fd-exact``).
 
 The engine contract (:mod:`wallcal.engines.base`) on a build-once, run-many core:
 :meth:`FDEngine.prepare` turns a :class:`SimulationInput`
@@ -36,6 +36,10 @@ Scheme details
   (:func:`depth_plane`): the link flux between nodes, plus on a node the heat stored by the node's
   part on the interior side of the plane; the face flux on a face. Outputs between grid times are
   interpolated linearly in time.
+- ``fd-exact`` (scheme ``exact``): walls with constant conductances are solved exactly in time for inputs
+  linear between samples (:mod:`wallcal.engines.exact`, path ``"exact"``); lambda(T) walls run
+  Crank-Nicolson on the general path at the grid's own step (``options.grid_time_step``), in
+  :func:`wallcal.grid.substeps` sub-steps per step, outputs at the run's times.
 - Paths: walls with constant conductances take the exact modal fast path (:mod:`wallcal.engines.modal`),
   raised thetas and nodes without capacity included; lambda(T) walls the general tridiagonal path
   (:mod:`wallcal.engines.kernels`), which runs any wall with ``path="general"``.
@@ -97,7 +101,8 @@ class BatchResult:
     final_state : ndarray, shape (n_candidates, n_nodes)
     implicit_links : ndarray of int, shape (n_candidates,)
     path : str
-        ``"modal"`` (exact fast path) or ``"general"`` (tridiagonal theta scheme).
+        ``"modal"`` (exact fast path), ``"general"`` (tridiagonal theta scheme) or ``"exact"`` (the exact
+        scheme, :mod:`wallcal.engines.exact`).
     energy is NaN on the modal path (the balance is checked on the general path; both paths
     are the same linear algebra).
     """

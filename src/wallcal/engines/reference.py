@@ -1,4 +1,4 @@
-"""``fd-reference``: the finite-volume theta scheme written plainly in numpy, as a yardstick.
+"""``fd-reference``: the finite-volume schemes written plainly in numpy and scipy, as a yardstick.
 
 This engine solves the same discrete equations as ``fd-cn``/``fd-implicit``
 (:mod:`wallcal.engines.fd`) with none of their speed: a dense matrix per step,
@@ -37,6 +37,9 @@ Nodes ``j`` at depths ``x_j``, links ``l`` between nodes ``l`` and ``l + 1``.
 - Outputs: probes linear between nodes, face fluxes and fluxes at a depth from the
   step fluxes averaged over the two steps around a grid time; linear in time between
   grid times.
+- ``scheme = "exact"``: the semi-discrete system solved exactly for inputs linear between grid
+  times, by the matrix exponential of an augmented system (:func:`solve_exact`); lambda(T) walls
+  run Crank-Nicolson at the grid's own step (:func:`substepped`).
 """
 
 from __future__ import annotations
