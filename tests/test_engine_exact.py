@@ -24,7 +24,7 @@ from wallcal.engines import get_engine
 from wallcal.engines.base import BoundaryInput
 from wallcal.engines.fd import FDEngine
 from wallcal.engines.reference import ReferenceEngine
-from wallcal.grid import build_grid, refine_in_time
+from wallcal.grid import PropertyArrays, build_grid, refine_in_time
 from wallcal.retrofitting import run as rrun
 from wallcal.retrofitting.boundary import YearBoundaries
 from wallcal.standards import iso13786
@@ -207,3 +207,35 @@ def test_lambda_of_t_walls_run_crank_nicolson_at_the_grid_step():
     assert a.info["substeps"] == 6 and a.info["path"] == "general"
     np.testing.assert_allclose(a.temperatures["p"], b.temperatures["p"], rtol=0, atol=1e-12)
     np.testing.assert_allclose(a.final_state, b.final_state, rtol=0, atol=1e-12)
+
+
+def test_sub_stepped_lambda_of_t_wall_equals_the_reference():
+    inp = make_case(0, "exact")  # lambda(T) layers
+    inp = inp.replace(options=inp.options.replace(grid_time_step=inp.time_step / 3))
+    ref = ReferenceEngine().run(inp)
+    out = FDEngine("exact").run(inp)
+    assert out.info["substeps"] == 3
+    for name in inp.probes:
+        np.testing.assert_allclose(out.temperatures[name], ref.temperatures[name], rtol=0, atol=1e-6)
+
+
+def test_batch_with_initial_state_and_fewer_rows_equals_single_runs():
+    inp = make_case(2, "exact")  # constant properties, surface temperature / heat flux
+    assert inp.wall.is_linear
+    eng = FDEngine("exact")
+    prep = eng.prepare(inp)
+    walls = [inp.wall.replace_layer(layer.id, conductivity=layer.conductivity * f) for layer in inp.wall.layers[:1]
+             for f in (0.8, 1.0, 1.25)]  # fmt: skip
+    t0 = np.linspace(5.0, 15.0, prep.grid.n_nodes)
+    batch = eng.run(prep, walls, initial_state=t0)
+    ref = ReferenceEngine()
+    for k, w in enumerate(walls):
+        one = ref.solve(inp, wall=w, initial_state=t0)
+        for name in inp.probes:
+            np.testing.assert_allclose(batch.temperatures[name][k], one.temperatures[name], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(batch.final_state[k], one.grid_temperatures[-1], rtol=0, atol=1e-6)
+    rows = np.zeros(len(inp.probes) + 2 + len(inp.flux_depths), dtype=bool)
+    rows[0] = True
+    few = prep.run_batch(PropertyArrays.from_walls(walls), rows=rows, initial_state=np.tile(t0, (3, 1)))
+    np.testing.assert_allclose(few.out[:, 0], batch.temperatures[inp.probes[0]], rtol=0, atol=1e-12)
+    assert np.isnan(few.out[:, 1:]).all()
