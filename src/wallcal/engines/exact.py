@@ -233,7 +233,8 @@ def exact_kernel(caps, gs, pas, pbs, pws, dl, dfrs, bc_type, bc_h, dt, ue, ui, p
             d[i] = ab[i, 0]
             ee[i] = ab[i, 1]
         ncol = 3 + n_q
-        zt = np.zeros((m, ncol))
+        zt = np.empty((m, ncol))  # (np.empty only: each other numpy call compiles numpy's code)
+        zt[:, :] = 0.0
         for k in range(m):
             xrow = x[k]
             zt[k, 0] = xrow[0] * pe
