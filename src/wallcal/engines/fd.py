@@ -176,9 +176,7 @@ class PreparedFD:
             raise EngineError("the simulation needs at least one time step")
         if len(pos) and (pos.min() < -1e-9 or pos.max() > n_steps + 1e-9 or np.any(np.diff(pos) < 0)):
             raise EngineError("output times must be increasing and inside the simulated period")
-        step = np.clip(np.floor(pos + 1e-9).astype(np.int64), 0, n_steps - 1)
-        self.out_step = step
-        self.out_w = np.clip(pos - step, 0.0, 1.0)
+        self.out_step, self.out_w = output_steps(pos, n_steps)
         self.probe_names = tuple(inp.probes)
         self.probe_sides = [self.wall.probe(p).side for p in self.probe_names]
         # heat flux at depths: the planes on the grid (a face, or the link and node of an inner plane)
@@ -204,11 +202,7 @@ class PreparedFD:
             self.dt /= k
             self.ue = refine_in_time(self.ue, k)
             self.ui = refine_in_time(self.ui, k)
-            pos = pos * k
-            n_steps = len(self.ue) - 1
-            step = np.clip(np.floor(pos + 1e-9).astype(np.int64), 0, n_steps - 1)
-            self.out_step = step
-            self.out_w = np.clip(pos - step, 0.0, 1.0)
+            self.out_step, self.out_w = output_steps(pos * k, len(self.ue) - 1)
 
     # ------------------------------------------------------------------ setup
     def _laws(self):
@@ -687,6 +681,13 @@ class FDEngine(Engine):
             "seconds": time.perf_counter() - t,
         }
         return BatchOutput(temperatures=temps, fluxes=fluxes, info=info, final_state=res.final_state)
+
+
+def output_steps(pos: np.ndarray, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Output times as fractional grid positions ``pos`` -> (step ``nk``, weight ``w``), the time ``nk + w``
+    with ``0 <= nk < n_steps`` (the last grid time is ``n_steps - 1`` with ``w = 1``)."""
+    step = np.clip(np.floor(pos + 1e-9).astype(np.int64), 0, n_steps - 1)
+    return step, np.clip(pos - step, 0.0, 1.0)
 
 
 def depth_plane(x: np.ndarray, depth: float) -> tuple[int, int, int]:
