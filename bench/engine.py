@@ -251,6 +251,10 @@ def main(argv=None):
         )
     )
 
+    # the exact scheme (fd-exact) on the same input: exact in time, three multiply-adds per mode and step
+    prep_x = FDEngine("exact").prepare(prep_data.inp.replace(scheme="exact"))
+    rows.append(row("one simulation, fd-exact (exact in time)", timeit(lambda: prep_x.run_batch(one), args.repeat)))
+
     batch = PropertyArrays.from_walls(candidate_walls(study.wall))
     ts = timeit(lambda: prep.run_batch(batch), max(3, args.repeat // 5))
     rows.append(row(f"batch of 256 candidate walls ({os.cpu_count()} cores), per batch", ts, per_call=256))

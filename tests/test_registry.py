@@ -94,7 +94,7 @@ bounds = [-0.5, 2.0]
 
 
 def test_registry_is_the_one_list_of_engines():
-    assert engines.ENGINE_NAMES == ("fd-cn", "fd-implicit", "fd-reference", "energyplus")
+    assert engines.ENGINE_NAMES == ("fd-cn", "fd-implicit", "fd-exact", "fd-reference", "energyplus")
     assert set(engines.engine_names()) >= set(engines.ENGINE_NAMES) | {"energyplus-cn", "energyplus-implicit"}
     assert engines.engine_names(base_case=True) == engines.ENGINE_NAMES  # fd-reference among them
     assert [engines.scheme_of(n) for n in ("fd-cn", "fd-implicit", "energyplus-implicit")] == [
@@ -113,7 +113,7 @@ def test_base_case_stage_runs_every_registered_engine_that_can(example_study):
     from wallcal.workflow import _available_engines
 
     names, why = _available_engines(prepare(example_study))
-    assert names[:3] == ["fd-cn", "fd-implicit", "fd-reference"]
+    assert names[:4] == ["fd-cn", "fd-implicit", "fd-exact", "fd-reference"]
     assert "energyplus" in names or "energyplus" in why
 
 

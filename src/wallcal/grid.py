@@ -343,3 +343,23 @@ def probe_weights(grid: Grid, depths: np.ndarray, sides: list[str | None]) -> tu
     mean = double & (side == 2)
     b[mean], w[mean] = last[mean], 0.5
     return a.astype(np.int64), b.astype(np.int64), w
+
+
+# ---------------------------------------------------------------------------- sub-steps in time
+def substeps(time_step: float, grid_time_step: float | None) -> int:
+    """Sub-steps per run step for the time step the grid was built for: ``ceil(time_step / grid_time_step)``
+    (1 without a grid step, or when the grid's step is not shorter). The exact scheme runs lambda(T) walls
+    with Crank-Nicolson at ``time_step / substeps`` (see :func:`refine_in_time`)."""
+    if not grid_time_step or grid_time_step >= time_step:
+        return 1
+    return int(math.ceil(time_step / grid_time_step - 1e-9))
+
+
+def refine_in_time(values: np.ndarray, n_sub: int) -> np.ndarray:
+    """A series at grid times ``k dt`` as values at ``j dt / n_sub``, linear between grid times (the inputs'
+    own interpolation): shape ``(n_sub * (n - 1) + 1,)`` for ``n`` values."""
+    v = np.asarray(values, dtype=float)
+    if n_sub == 1:
+        return v
+    fine = np.arange(n_sub * (len(v) - 1) + 1) / n_sub
+    return np.interp(fine, np.arange(len(v)), v)

@@ -1,7 +1,8 @@
 """The engine registry: the one place that knows engines by name.
 
-Built in: ``fd-cn``, ``fd-implicit``, ``fd-reference`` and ``energyplus`` (optional extra), plus the
-comparison names ``energyplus-cn`` / ``energyplus-implicit`` (EnergyPlus with its CondFD scheme chosen).
+Built in: ``fd-cn``, ``fd-implicit``, ``fd-exact`` (exact in time for linear walls), ``fd-reference`` and
+``energyplus`` (optional extra), plus the comparison names ``energyplus-cn`` / ``energyplus-implicit``
+(EnergyPlus with its CondFD scheme chosen).
 Every engine implements the contract of :mod:`wallcal.engines.base` and is registered here by one line of
 :data:`BUILT_IN` (or, from outside, one :func:`register` call). Its :class:`EngineEntry` says what callers
 outside ``engines/`` need to know, so none of them tests a name:
@@ -36,6 +37,9 @@ from .base import (
     WallBatch,
 )
 
+#: The time schemes an engine may declare.
+SCHEMES = ("cn", "implicit", "exact")
+
 #: The engine a study runs when it names none.
 DEFAULT_ENGINE = "fd-cn"
 
@@ -54,7 +58,8 @@ class EngineEntry:
     kwargs : mapping
         Constructor arguments.
     scheme : str
-        Time scheme of the runs: ``"cn"`` (Crank-Nicolson) or ``"implicit"``.
+        Time scheme of the runs: ``"cn"`` (Crank-Nicolson), ``"implicit"`` or ``"exact"`` (the exact
+        exponential solution for inputs linear between samples; see :mod:`wallcal.engines.exact`).
     in_studies : bool
         A study's ``simulation.engine`` (and ``wallcal simulate --engine``) may name it; False for names
         that only exist in comparisons.
@@ -100,6 +105,7 @@ class EngineEntry:
 BUILT_IN = (
     EngineEntry("fd-cn", ".fd:FDEngine", {"scheme": "cn"}),
     EngineEntry("fd-implicit", ".fd:FDEngine", {"scheme": "implicit"}, scheme="implicit"),
+    EngineEntry("fd-exact", ".fd:FDEngine", {"scheme": "exact"}, scheme="exact"),
     EngineEntry("fd-reference", ".reference:ReferenceEngine"),
     EngineEntry(
         "energyplus", ".energyplus:EnergyPlusEngine", node_rule="energyplus (EnergyPlus' own)", refines_calibration=True
@@ -132,8 +138,8 @@ def register(name: str, factory: type | str, **facts) -> EngineEntry:
     if name in _REGISTRY:
         raise EngineError(f"engine {name!r} is already registered")
     entry = EngineEntry(name, factory, **facts)
-    if entry.scheme not in ("cn", "implicit"):
-        raise EngineError(f"engine {name!r}: scheme must be 'cn' or 'implicit', got {entry.scheme!r}")
+    if entry.scheme not in SCHEMES:
+        raise EngineError(f"engine {name!r}: scheme must be one of {', '.join(SCHEMES)}, got {entry.scheme!r}")
     _REGISTRY[name] = entry
     return entry
 
@@ -180,7 +186,7 @@ def engine_class(name: str) -> type[Engine]:
 
 
 def scheme_of(name: str) -> str:
-    """Time scheme of engine ``name``: ``"cn"`` or ``"implicit"``."""
+    """Time scheme of engine ``name``: one of :data:`SCHEMES`."""
     return entry(name).scheme
 
 

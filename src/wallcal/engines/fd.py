@@ -1,4 +1,4 @@
-"""The finite-volume engine ``fd`` (``fd-cn``: Crank-Nicolson, ``fd-implicit``: fully implicit).
+"""The finite-volume engine ``fd`` (``fd-cn``: Crank-Nicolson, ``fd-implicit``: fully implicit, ``fd-exact``).
 
 The engine contract (:mod:`wallcal.engines.base`) on a build-once, run-many core:
 :meth:`FDEngine.prepare` turns a :class:`SimulationInput`
@@ -36,6 +36,10 @@ Scheme details
   (:func:`depth_plane`): the link flux between nodes, plus on a node the heat stored by the node's
   part on the interior side of the plane; the face flux on a face. Outputs between grid times are
   interpolated linearly in time.
+- ``fd-exact`` (scheme ``exact``): walls with constant conductances are solved exactly in time for inputs
+  linear between samples (:mod:`wallcal.engines.exact`, path ``"exact"``); lambda(T) walls run
+  Crank-Nicolson on the general path at the grid's own step (``options.grid_time_step``), in
+  :func:`wallcal.grid.substeps` sub-steps per step, outputs at the run's times.
 - Paths: walls with constant conductances take the exact modal fast path (:mod:`wallcal.engines.modal`),
   raised thetas and nodes without capacity included; lambda(T) walls the general tridiagonal path
   (:mod:`wallcal.engines.kernels`), which runs any wall with ``path="general"``.
@@ -69,12 +73,17 @@ from ..grid import (
     assemble_lines,
     build_grid,
     probe_weights,
+    refine_in_time,
+    substeps,
 )
 from ..wall import Wall
-from . import boundary, kernels, modal, operator
+from . import boundary, exact, kernels, modal, operator
 from .base import BatchOutput, Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch
 
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
+#: the schemes: the theta schemes, and ``exact`` (:mod:`wallcal.engines.exact`; lambda(T) walls: Crank-Nicolson at
+#: the grid's own step)
+SCHEMES = ("cn", "implicit", "exact")
 DEFAULT_STIFF_LIMIT = None  # 1 / (1 - theta): the discrete maximum principle (see operator.link_thetas)
 
 
@@ -92,7 +101,8 @@ class BatchResult:
     final_state : ndarray, shape (n_candidates, n_nodes)
     implicit_links : ndarray of int, shape (n_candidates,)
     path : str
-        ``"modal"`` (exact fast path) or ``"general"`` (tridiagonal theta scheme).
+        ``"modal"`` (exact fast path), ``"general"`` (tridiagonal theta scheme) or ``"exact"`` (the exact
+        scheme, :mod:`wallcal.engines.exact`).
     energy is NaN on the modal path (the balance is checked on the general path; both paths
     are the same linear algebra).
     """
@@ -140,9 +150,10 @@ class PreparedFD:
         self.grid = grid
         self.wall = inp.wall
         self.stiff_limit = None if stiff_limit is None else float(stiff_limit)
-        if inp.scheme not in SCHEME_THETA:
-            raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
-        self.theta = SCHEME_THETA[inp.scheme]
+        if inp.scheme not in SCHEMES:
+            raise EngineError(f"simulation scheme must be one of {SCHEMES}, got {inp.scheme!r}")
+        self.exact = inp.scheme == "exact"
+        self.theta = SCHEME_THETA.get(inp.scheme, 0.5)  # the exact scheme's lambda(T) walls: Crank-Nicolson
         # the theta rule's limit L (operator.link_thetas): 1 / (1 - theta) unless given
         self.theta_limit = self.stiff_limit if self.stiff_limit is not None else 1.0 / max(1.0 - self.theta, 1e-300)
         self._per_size: dict[int, dict[str, np.ndarray]] = {}
@@ -165,9 +176,7 @@ class PreparedFD:
             raise EngineError("the simulation needs at least one time step")
         if len(pos) and (pos.min() < -1e-9 or pos.max() > n_steps + 1e-9 or np.any(np.diff(pos) < 0)):
             raise EngineError("output times must be increasing and inside the simulated period")
-        step = np.clip(np.floor(pos + 1e-9).astype(np.int64), 0, n_steps - 1)
-        self.out_step = step
-        self.out_w = np.clip(pos - step, 0.0, 1.0)
+        self.out_step, self.out_w = output_steps(pos, n_steps)
         self.probe_names = tuple(inp.probes)
         self.probe_sides = [self.wall.probe(p).side for p in self.probe_names]
         # heat flux at depths: the planes on the grid (a face, or the link and node of an inner plane)
@@ -184,6 +193,16 @@ class PreparedFD:
         # lambda(T): refactorise the tridiagonal matrix when a conductance drifts this much (0: every step)
         self.refactor_drift = float(inp.options.refactor_drift)
         self._laws()
+        #: sub-steps per step (the exact scheme on a lambda(T) wall runs Crank-Nicolson at the grid's step)
+        self.substeps = 1
+        if self.exact and self.nonlinear:
+            self.substeps = substeps(self.dt, inp.options.grid_time_step or self.dt)
+        if self.substeps > 1:
+            k = self.substeps
+            self.dt /= k
+            self.ue = refine_in_time(self.ue, k)
+            self.ui = refine_in_time(self.ui, k)
+            self.out_step, self.out_w = output_steps(pos * k, len(self.ue) - 1)
 
     # ------------------------------------------------------------------ setup
     def _laws(self):
@@ -319,7 +338,11 @@ class PreparedFD:
         if path == "modal" and not self.modal_possible:
             raise EngineError("the modal fast path needs constant conductivities (no lambda(T)); use path='general'")
         cplus = self._plane_capacities(props)
-        if path in ("auto", "modal") and self.modal_possible:
+        if self.exact and self.modal_possible:
+            if path == "general":
+                raise EngineError("the exact scheme runs walls with constant conductivities on the modal path only")
+            res = self._run_exact(cap, g, pa, pb, pw, cplus, initial_state, rows)
+        elif path in ("auto", "modal") and self.modal_possible:
             res = self._run_modal(cap, g, theta, bc_theta, pa, pb, pw, cplus, initial_state, n_forced, rows)
         else:
             res = self._run_general(cap, g, coef, theta, bc_theta, n_forced, pa, pb, pw, cplus, initial_state)
@@ -383,6 +406,51 @@ class PreparedFD:
         full[:, : npr + 2] = out[:, : npr + 2]
         full[:, npr + 2 + self.depth_inner] = inner
         return full
+
+    # ------------------------------------------------------------------ the exact scheme
+    def _run_exact(self, cap, g, pa, pb, pw, cplus, initial_state, rows=None) -> BatchResult:
+        """The exact scheme (:mod:`wallcal.engines.exact`): one kernel call per thread over the candidates."""
+        nc, n_nodes = cap.shape
+        npr, n_in = pa.shape[1], len(self.depth_link)
+        want = self._all_rows if rows is None else np.asarray(rows, dtype=np.bool_)
+        want_x = np.zeros(npr + 2 + n_in, dtype=np.bool_)
+        want_x[: npr + 2] = want[: npr + 2]
+        if len(want) > npr + 2:
+            want_x[npr + 2 :] = want[npr + 2 + self.depth_inner]
+            for d in np.flatnonzero(want[npr + 2 :]):
+                if self.depth_face[d] >= 0:
+                    want_x[npr + self.depth_face[d]] = True
+        # f = c+ / c of a plane on a node (0 between nodes)
+        if n_in:
+            c_node = cap[:, self.depth_link]
+            dfr = np.where(c_node > 0, cplus / np.where(c_node > 0, c_node, 1.0), 0.0)
+        else:
+            dfr = self._sized(nc)["no_planes"]
+        dfr = np.ascontiguousarray(dfr)
+        if getattr(self, "_exact_plan", None) is None:
+            self._exact_plan = exact.exact_plan(self.out_step, self.out_w, self.ue, self.ui, self.dt)
+        plan = self._exact_plan
+        t0 = self._sized(nc)["no_state"] if initial_state is None else np.ascontiguousarray(initial_state, dtype=float)
+        out = np.empty((nc, npr + 2 + n_in, len(self.out_step)))
+        tend = np.empty((nc, n_nodes))
+        per_candidate = (cap, g, pa, pb, pw, dfr, t0)
+        rows_all = np.arange(nc)
+
+        def part(sl):
+            c, gg, a, b, w, f, t = per_candidate if sl is None else (x[sl] for x in per_candidate)
+            exact.exact_batch(
+                c, gg, a, b, w, self.depth_link, f, self.bc_type, self.bc_h, self.dt, self.ue, self.ui, plan,
+                want_x, t, rows_all if sl is None else rows_all[sl], out, tend,
+            )  # fmt: skip
+
+        in_threads(part, nc)
+        if not np.isfinite(tend).all():
+            raise EngineError("the modal eigen-decomposition failed (LAPACK's reduction or the QL)")
+        out = self._with_depth_rows(out)
+        energy = np.full((nc, 3), np.nan)
+        return BatchResult(
+            out=out, energy=energy, final_state=tend, implicit_links=np.zeros(nc, dtype=np.int64), path="exact"
+        )
 
     # ------------------------------------------------------------------ fast path
     def _output_plan(self, input_thetas: tuple[float, float] | None = None) -> modal.ModalPlan:
@@ -515,6 +583,7 @@ class PreparedFD:
             "nodes_per_layer": list(self.grid.nodes_per_layer),
             "node_rule": self.grid.rule,
             "implicit_links": int(res.implicit_links[c]),
+            "substeps": self.substeps,
             "energy_residual_J_m2": None if np.isnan(e_in) else float(res.energy_residual[c]),
             "energy_throughput_J_m2": None if np.isnan(e_in) else float(abs(e_in) + abs(e_out)),
             "nonlinear": self.nonlinear,
@@ -541,8 +610,8 @@ class FDEngine(Engine):
     )
 
     def __init__(self, scheme: str = "cn"):
-        if scheme not in SCHEME_THETA:
-            raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {scheme!r}")
+        if scheme not in SCHEMES:
+            raise EngineError(f"simulation scheme must be one of {SCHEMES}, got {scheme!r}")
         self.scheme = scheme
         self.name = f"fd-{scheme}"
         self._walls: dict[int, tuple[Wall, tuple[str, ...], WallBatch]] = {}  # arrays of recently run walls
@@ -612,6 +681,13 @@ class FDEngine(Engine):
             "seconds": time.perf_counter() - t,
         }
         return BatchOutput(temperatures=temps, fluxes=fluxes, info=info, final_state=res.final_state)
+
+
+def output_steps(pos: np.ndarray, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Output times as fractional grid positions ``pos`` -> (step ``nk``, weight ``w``), the time ``nk + w``
+    with ``0 <= nk < n_steps`` (the last grid time is ``n_steps - 1`` with ``w = 1``)."""
+    step = np.clip(np.floor(pos + 1e-9).astype(np.int64), 0, n_steps - 1)
+    return step, np.clip(pos - step, 0.0, 1.0)
 
 
 def depth_plane(x: np.ndarray, depth: float) -> tuple[int, int, int]:

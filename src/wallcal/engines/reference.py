@@ -1,4 +1,4 @@
-"""``fd-reference``: the finite-volume theta scheme written plainly in numpy, as a yardstick.
+"""``fd-reference``: the finite-volume schemes written plainly in numpy and scipy, as a yardstick.
 
 This engine solves the same discrete equations as ``fd-cn``/``fd-implicit``
 (:mod:`wallcal.engines.fd`) with none of their speed: a dense matrix per step,
@@ -37,6 +37,9 @@ Nodes ``j`` at depths ``x_j``, links ``l`` between nodes ``l`` and ``l + 1``.
 - Outputs: probes linear between nodes, face fluxes and fluxes at a depth from the
   step fluxes averaged over the two steps around a grid time; linear in time between
   grid times.
+- ``scheme = "exact"``: the semi-discrete system solved exactly for inputs linear between grid
+  times, by the matrix exponential of an augmented system (:func:`solve_exact`); lambda(T) walls
+  run Crank-Nicolson at the grid's own step (:func:`substepped`).
 """
 
 from __future__ import annotations
@@ -46,13 +49,15 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from ..errors import EngineError
-from ..grid import MIN_CONTACT_RESISTANCE, build_grid
+from ..grid import MIN_CONTACT_RESISTANCE, build_grid, refine_in_time, substeps
 from ..wall import Wall
 from .base import BOUNDARY_TYPES, Capabilities, Engine, EngineOutput, SimulationInput
 
 SCHEME_THETA = {"cn": 0.5, "implicit": 1.0}
+SCHEMES = ("cn", "implicit", "exact")
 
 
 # ---------------------------------------------------------------------------- the discrete wall
@@ -285,6 +290,9 @@ class ReferenceEngine(Engine):
             Node temperatures [degC] at grid time 0; default the steady state of the first boundary values.
         """
         wall = inp.wall if wall is None else wall
+        if inp.scheme == "exact" and not wall.is_linear:
+            # lambda(T): Crank-Nicolson at the grid's own step (sub-steps of the run's step)
+            return self.solve(substepped(inp), wall, flux_depths, contact_layers, initial_state)
         theta0, stiff_limit, drift = self._settings(inp)
         ext, intr = inp.exterior, inp.interior
         for face, b in (("exterior", ext), ("interior", intr)):
@@ -325,6 +333,10 @@ class ReferenceEngine(Engine):
         known[-1] = intr.type == "surface_temperature"
 
         face_h = [b.surface_coefficient if b.type == "air_temperature" else 0.0 for b in (ext, intr)]
+        if inp.scheme == "exact":
+            if initial_state is None:
+                initial_state = steady_state(wall, disc, ext.type, intr.type, ext, intr, ue[0], ui[0])
+            return solve_exact(inp, wall, disc, (ext.type, intr.type), face_h, ue, ui, flux_depths, initial_state)
         theta, bc_theta = link_thetas(cap, g_ref, known, face_h, theta0, dt, stiff_limit)
         implicit_links = int(np.sum(theta != theta0))
         nonlinear = any(lk.kind == "layer" and wall.layers[lk.layer].is_temperature_dependent for lk in disc.links)
@@ -452,9 +464,9 @@ class ReferenceEngine(Engine):
 
     @staticmethod
     def _settings(inp: SimulationInput) -> tuple[float, float, float]:
-        if inp.scheme not in SCHEME_THETA:
-            raise EngineError(f"simulation scheme must be one of {tuple(SCHEME_THETA)}, got {inp.scheme!r}")
-        theta0 = SCHEME_THETA[inp.scheme]
+        if inp.scheme not in SCHEMES:
+            raise EngineError(f"simulation scheme must be one of {SCHEMES}, got {inp.scheme!r}")
+        theta0 = SCHEME_THETA.get(inp.scheme, 0.5)  # (the exact scheme has no theta)
         stiff_limit = inp.options.stiff_limit
         drift = float(inp.options.refactor_drift)
         return theta0, stiff_limit, drift
@@ -650,3 +662,195 @@ def flux_at_depth(disc: Discretisation, F: np.ndarray, Ts: np.ndarray, dt: float
         return None, "exterior"
     c_plus = disc.links[k].half_capacity
     return F[:, k] + c_plus * (Ts[1:, k] - Ts[:-1, k]) / dt, None
+
+
+# ---------------------------------------------------------------------------- the exact scheme
+def substepped(inp: SimulationInput) -> SimulationInput:
+    """The input run by Crank-Nicolson at the grid's own step: ``grid_time_step`` (default the run's step)
+    divides the run's step into :func:`wallcal.grid.substeps` sub-steps; inputs linear in between, output
+    positions on the finer grid (the exact scheme's lambda(T) walls)."""
+    grid_dt = inp.options.grid_time_step or inp.time_step
+    n_sub = substeps(inp.time_step, grid_dt)
+    ext, intr = inp.exterior, inp.interior
+    return inp.replace(
+        scheme="cn",
+        time_step=inp.time_step / n_sub,
+        exterior=dataclasses.replace(ext, values=refine_in_time(ext.values, n_sub)),
+        interior=dataclasses.replace(intr, values=refine_in_time(intr.values, n_sub)),
+        output_positions=np.asarray(inp.output_positions, dtype=float) * n_sub,
+        options=inp.options.replace(grid_time_step=grid_dt),
+    )
+
+
+def exact_system(disc: Discretisation, g: np.ndarray, types, face_h):
+    """The semi-discrete system ``Cap T' = -K T + P u(t)`` (``u = (u_e, u_i)``) reduced to the nodes with heat
+    capacity: known face nodes (``T = u``) and nodes without capacity (``K_zz T_z = P_z u - K_zm T_m``)
+    eliminated. Returns ``(A, B, L_m, L_u, massive)``: ``T_m' = A T_m + B u`` and every node's temperature
+    ``T = L_m T_m + L_u u``; ``massive`` the indices of the nodes with capacity."""
+    n = disc.n_nodes
+    cap = disc.capacity
+    K = np.zeros((n, n))
+    for k, lk in enumerate(disc.links):
+        a, b = lk.a, lk.a + 1
+        K[a, a] += g[k]
+        K[b, b] += g[k]
+        K[a, b] -= g[k]
+        K[b, a] -= g[k]
+    P = np.zeros((n, 2))
+    known = np.zeros(n, dtype=bool)
+    for f, (j, sign) in enumerate(((0, 1.0), (n - 1, -1.0))):
+        if types[f] == "surface_temperature":
+            known[j] = True
+        elif types[f] == "air_temperature":
+            K[j, j] += face_h[f]
+            P[j, f] += face_h[f]
+        else:  # heat flux, positive towards the interior
+            P[j, f] += sign
+    S = np.zeros((n, 2))  # known nodes: T = S u
+    S[0, 0] = 1.0 if known[0] else 0.0
+    S[-1, 1] = 1.0 if known[-1] else 0.0
+    unk = np.flatnonzero(~known)
+    m_idx = unk[cap[unk] > 0]
+    z_idx = unk[cap[unk] <= 0]
+    kn = np.flatnonzero(known)
+    Bu = P - K[:, kn] @ S[kn]  # forcing of every node by u once the known nodes are substituted
+    # T_z = Z_m T_m + Z_u u
+    if len(z_idx):
+        Kzz = K[np.ix_(z_idx, z_idx)]
+        Z_m = -np.linalg.solve(Kzz, K[np.ix_(z_idx, m_idx)])
+        Z_u = np.linalg.solve(Kzz, Bu[z_idx])
+    else:
+        Z_m = np.zeros((0, len(m_idx)))
+        Z_u = np.zeros((0, 2))
+    Ks = K[np.ix_(m_idx, m_idx)] + K[np.ix_(m_idx, z_idx)] @ Z_m
+    Bs = Bu[m_idx] - K[np.ix_(m_idx, z_idx)] @ Z_u
+    c = cap[m_idx]
+    A = -Ks / c[:, None]
+    B = Bs / c[:, None]
+    L_m = np.zeros((n, len(m_idx)))
+    L_u = S.copy()
+    L_m[m_idx, np.arange(len(m_idx))] = 1.0
+    L_m[z_idx] = Z_m
+    L_u[z_idx] = Z_u
+    return A, B, L_m, L_u, m_idx
+
+
+def solve_exact(inp, wall, disc, types, face_h, ue, ui, flux_depths, T0) -> ReferenceResult:
+    """The exact scheme of a wall with constant properties: the exact solution of the semi-discrete system
+    (:func:`exact_system`) for inputs linear between grid times, by the matrix exponential of the augmented
+    system ``(T_m, u, du/dt, E_e, E_i)``, whose last two states integrate the face fluxes (the energy balance).
+
+    Outputs are instantaneous at the output times (between grid times from the exact state at that time):
+    probes linear between nodes; face fluxes ``h (u - T_s)``, ``g (u - T_1) + c_0 du/dt`` (known face: the
+    input's rate as a central difference at grid times, linear in between), the imposed flux; a flux at a
+    depth is the link flux ``g (T_a - T_b)``, on a node ``k`` the flux into the next link plus the heat
+    stored by the node's interior part, ``F_k + c_k^+ dT_k/dt`` with ``c_k dT_k/dt = F_{k-1} - F_k``.
+    """
+    dt = float(inp.time_step)
+    n_steps = len(ue) - 1
+    n = disc.n_nodes
+    cap = disc.capacity
+    g = np.array([lk.g_ref for lk in disc.links])
+    A, B, L_m, L_u, m_idx = exact_system(disc, g, types, face_h)
+    nm = len(m_idx)
+    U = np.column_stack([ue, ui])  # (n_steps + 1, 2)
+    rate = np.empty_like(U)  # central differences at grid times (one-sided at the ends)
+    rate[1:-1] = (U[2:] - U[:-2]) / (2.0 * dt)
+    rate[0] = (U[1] - U[0]) / dt
+    rate[-1] = (U[-1] - U[-2]) / dt
+    slope = (U[1:] - U[:-1]) / dt  # du/dt over each step
+    # face fluxes as rows over the node temperatures, the input and its rate: q = a . T + b . u + c . du/dt
+    qa = np.zeros((2, n))
+    qb = np.zeros((2, 2))
+    qc = np.zeros((2, 2))
+    for f, (j, jn, lk, sign) in enumerate(((0, 1, 0, 1.0), (n - 1, n - 2, len(g) - 1, -1.0))):
+        if types[f] == "surface_temperature":
+            qa[f, jn] -= sign * g[lk]
+            qb[f, f] += sign * g[lk]
+            qc[f, f] += sign * cap[j]
+        elif types[f] == "air_temperature":
+            qa[f, j] -= sign * face_h[f]
+            qb[f, f] += sign * face_h[f]
+        else:
+            qb[f, f] += 1.0
+    # the augmented system: states (T_m, u, du/dt, E_e, E_i), E the energy through each face
+    na = nm + 6
+    aug = np.zeros((na, na))
+    aug[:nm, :nm] = A
+    aug[:nm, nm : nm + 2] = B
+    aug[nm : nm + 2, nm + 2 : nm + 4] = np.eye(2)
+    aug[nm + 4 :, :nm] = qa @ L_m
+    aug[nm + 4 :, nm : nm + 2] = qa @ L_u + qb
+    aug[nm + 4 :, nm + 2 : nm + 4] = qc
+    phi = scipy.linalg.expm(dt * aug)
+    T0 = np.asarray(T0, dtype=float)
+    Tm = T0[m_idx].copy()
+    Ts = np.empty((n_steps + 1, n))
+    Ts[0] = L_m @ Tm + L_u @ U[0]
+    Tm_steps = np.empty((n_steps + 1, nm))
+    Tm_steps[0] = Tm
+    energy = np.zeros(2)
+    for k in range(n_steps):
+        x = np.concatenate([Tm, U[k], slope[k], [0.0, 0.0]])
+        x = phi @ x
+        Tm = x[:nm]
+        energy += x[nm + 4 :]
+        Tm_steps[k + 1] = Tm
+        Ts[k + 1] = L_m @ Tm + L_u @ U[k + 1]
+    stored = float(cap @ (Ts[-1] - Ts[0]))
+    pos = np.asarray(inp.output_positions, dtype=float)
+    if len(pos) and (pos.min() < -1e-9 or pos.max() > n_steps + 1e-9 or np.any(np.diff(pos) < 0)):
+        raise EngineError("output times must be increasing and inside the simulated period")
+    # the state, the input and its rate at the output times
+    steps = np.clip(np.floor(pos + 1e-9).astype(int), 0, n_steps - 1)
+    ws = np.clip(pos - steps, 0.0, 1.0)
+    phis: dict[float, np.ndarray] = {}
+    T_out = np.empty((len(pos), n))
+    u_out = np.empty((len(pos), 2))
+    r_out = np.empty((len(pos), 2))
+    for i, (k, w) in enumerate(zip(steps, ws, strict=True)):
+        u_out[i] = (1.0 - w) * U[k] + w * U[k + 1]
+        r_out[i] = (1.0 - w) * rate[k] + w * rate[k + 1]
+        if w == 0.0:
+            T_out[i] = Ts[k]
+            continue
+        if w not in phis:
+            phis[w] = scipy.linalg.expm(w * dt * aug[: nm + 4, : nm + 4])
+        x = phis[w] @ np.concatenate([Tm_steps[k], U[k], slope[k]])
+        T_out[i] = L_m @ x[:nm] + L_u @ u_out[i]
+    temps = {}
+    for name in inp.probes:
+        p = wall.probe(name)
+        temps[name] = T_out @ probe_node_weights(disc.x, p.depth, p.side)
+    face_q = T_out @ qa.T + u_out @ qb.T + r_out @ qc.T
+    fluxes = {face: face_q[:, 0 if face == "exterior" else 1].copy() for face in inp.flux_faces}
+    link_F = (T_out[:, :-1] - T_out[:, 1:]) * g  # link fluxes at the output times
+    depth_fluxes = {}
+    x = disc.x
+    tol = 1e-12 * max(1.0, x[-1])
+    for depth in flux_depths:
+        d = min(max(float(depth), 0.0), x[-1])
+        on = [j for j in range(n) if abs(x[j] - d) <= tol]
+        if not on:
+            depth_fluxes[float(depth)] = link_F[:, max(j for j in range(n) if x[j] < d)].copy()
+        elif on[-1] == n - 1:
+            depth_fluxes[float(depth)] = face_q[:, 1].copy()
+        elif on[0] == 0 and d == 0.0:
+            depth_fluxes[float(depth)] = face_q[:, 0].copy()
+        else:
+            k = on[-1]
+            frac = disc.links[k].half_capacity / cap[k] if cap[k] > 0 else 0.0
+            depth_fluxes[float(depth)] = link_F[:, k] + frac * (link_F[:, k - 1] - link_F[:, k])
+    return ReferenceResult(
+        disc=disc,
+        grid_temperatures=Ts,
+        step_fluxes=np.diff(Ts, axis=0)[:, :0],
+        face_step_fluxes=np.full((n_steps, 2), np.nan),
+        temperatures=temps,
+        fluxes=fluxes,
+        depth_fluxes=depth_fluxes,
+        implicit_links=0,
+        refactorisations=0,
+        energy_residual=stored - (energy[0] - energy[1]),
+        energy_throughput=float(abs(energy[0]) + abs(energy[1])),
+    )
