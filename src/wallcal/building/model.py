@@ -28,11 +28,10 @@ from __future__ import annotations
 
 import copy
 import json
-import subprocess
 import tempfile
 from pathlib import Path
 
-from ..errors import DataError, StudyError, closest
+from ..errors import DataError, EngineError, StudyError, closest
 from ..idf import idf_to_epjson, wall_to_idf_objects
 from ..wall import Wall
 
@@ -117,21 +116,13 @@ def load_model(path: str | Path) -> dict:
         except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise DataError(f"{path}: not a readable epJSON file ({exc})") from exc
     elif suffix == ".idf":
-        from ..engines.energyplus.runner import energyplus_binary, error_lines
+        from ..eplus import convert_to_epjson
 
         with tempfile.TemporaryDirectory(prefix="wallcal_convert_") as tmp:
-            proc = subprocess.run(
-                [str(energyplus_binary()), "--convert-only", "-d", tmp, str(path.resolve())],
-                capture_output=True,
-                text=True,
-                timeout=300,
-            )
-            out = Path(tmp) / (path.stem + ".epJSON")
-            err = Path(tmp) / "eplusout.err"
-            lines = error_lines(err.read_text(errors="replace")) if err.exists() else []
-            if proc.returncode != 0 or not out.exists() or lines:
-                why = lines[0] if lines else (proc.stderr or proc.stdout or "").strip().splitlines()[-1:]
-                raise DataError(f"{path}: EnergyPlus could not convert the IDF file to epJSON: {why}")
+            try:
+                out = convert_to_epjson(path, Path(tmp))
+            except EngineError as exc:
+                raise DataError(f"{path}: EnergyPlus could not convert the IDF file to epJSON: {exc}") from exc
             model = json.loads(out.read_text(encoding="utf-8"))
     else:
         raise DataError(f"--building {path}: expected an .epJSON or .idf file (EnergyPlus 25.2)")
