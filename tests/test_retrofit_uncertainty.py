@@ -12,6 +12,7 @@ from retrofit_helpers import study_with_retrofit, write_epw, year_temperature
 from wallcal import load_study
 from wallcal.calibration.space import parse_space
 from wallcal.cli import main
+from wallcal.outputs import format_entries
 from wallcal.retrofitting import boundary, run, weather
 
 BODY = """
@@ -41,6 +42,7 @@ def _posterior_dir(study, d, seed=0):
         upper=sp.upper,
     )
     (d / "posterior.json").write_text(json.dumps({"burn": 10, "thin": 2}))
+    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
     return sp, chain
 
 

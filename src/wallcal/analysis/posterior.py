@@ -920,6 +920,83 @@ def _stats(samples: np.ndarray, prior: np.ndarray, truth=None) -> dict:
     return row
 
 
+# ============================================================================ the output folder, read back
+#: The command whose output :meth:`PosteriorResult.write_into` writes (its format version: :mod:`wallcal.outputs`).
+COMMAND = "posterior"
+
+
+@dataclass
+class Samples:
+    """Posterior draws applied to a base wall: ``walls`` (one per draw), ``values`` (draw x parameter, SI),
+    ``names`` (parameter names as the posterior wrote them), ``point`` (the posterior-median wall)."""
+
+    walls: list
+    values: np.ndarray
+    names: list[str]
+    point: object
+    source: str
+
+
+def apply_named(wall, names: list[str], x: np.ndarray):
+    """Apply parameter values named like the calibration space's ('conductivity[5,8]'); probe depths skip."""
+    for name, v in zip(names, x, strict=True):
+        prop, _, ids = name.partition("[")
+        if prop == "depth":
+            continue
+        for lid in ids.rstrip("]").split(","):
+            wall = wall.replace_layer(lid, **{prop: float(v)})
+    return wall
+
+
+def load_samples(from_dir: Path, wall, n_max: int) -> Samples:
+    """Posterior samples from a ``wallcal posterior`` output (``chain.npz``, ``posterior.json``) of the format
+    this wallcal writes: the chain after its burn-in, thinned as the posterior did, at most ``n_max`` draws
+    evenly spread, applied to ``wall``.
+
+    Raises
+    ------
+    OutputFormatError
+        A folder of another format version, or without one (:func:`wallcal.outputs.check_format`).
+    DataError
+        Unreadable files, a chain of the wrong shape, no draw after the burn-in.
+    StudyError
+        A parameter naming a layer ``wall`` does not have.
+    """
+    from ..errors import DataError, StudyError
+    from ..outputs import check_format
+
+    from_dir = Path(from_dir)
+    check_format(from_dir, COMMAND)
+    chain_f, info_f = from_dir / "chain.npz", from_dir / "posterior.json"
+    try:
+        with np.load(chain_f, allow_pickle=False) as z:
+            chain, names, lower, upper = z["chain"], [str(s) for s in z["names"]], z["lower"], z["upper"]
+        info = json.loads(info_f.read_text())
+        burn, thin = int(info.get("burn", 0)), max(1, int(info.get("thin", 1)))
+    except (OSError, KeyError, ValueError) as exc:
+        raise DataError(f"{from_dir}: not a readable posterior output (chain.npz, posterior.json): {exc}") from exc
+    if chain.ndim != 3 or chain.shape[2] != len(names):
+        raise DataError(f"{chain_f}: chain has shape {chain.shape}, expected (steps, walkers, {len(names)})")
+    flat = chain[burn::thin].reshape(-1, chain.shape[2])
+    if len(flat) == 0:
+        raise DataError(f"{from_dir}: no posterior draw after the burn-in")
+    X = lower + flat * (upper - lower)
+    ids = {layer.id for layer in wall.layers}
+    for name in names:
+        prop, _, lids = name.partition("[")
+        if prop != "depth":
+            bad = [i for i in lids.rstrip("]").split(",") if i not in ids]
+            if bad:
+                raise StudyError(
+                    [f"{chain_f}: parameter {name!r} names layer(s) {', '.join(bad)} that the wall does not have"]
+                )
+    pick = np.unique(np.linspace(0, len(X) - 1, min(n_max, len(X))).round().astype(int))
+    Xs = X[pick]
+    walls = [apply_named(wall, names, x) for x in Xs]
+    point = apply_named(wall, names, np.median(X, axis=0))
+    return Samples(walls=walls, values=Xs, names=names, point=point, source=str(from_dir))
+
+
 # ============================================================================ the run
 def initial_walkers(space, x_start, nw, rng, information, weight: float = 1.0, tries: int = 100):
     """Walkers drawn from the Laplace approximation of the posterior at ``x_start`` (unit coordinates).
