@@ -148,3 +148,16 @@ def test_no_import_circle_even_counting_the_imports_inside_functions():
 
 def test_the_cycle_finder_finds_a_circle():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_one_module_launches_energyplus():
+    """Only :mod:`wallcal.eplus` starts a process (EnergyPlus: the wall engine, building runs, IDF conversion)."""
+    starters = []
+    for path in SRC.rglob("*.py"):
+        for module, names in _imports(path):
+            if module == "subprocess" or (module == "os" and {"system", "popen", "spawnv"} & set(names)):
+                starters.append(str(path.relative_to(SRC)))
+        tree = ast.parse(path.read_text())
+        if any(isinstance(n, ast.FunctionDef) and n.name == "energyplus_binary" for n in ast.walk(tree)):
+            starters.append(f"{path.relative_to(SRC)}: defines energyplus_binary")
+    assert sorted(set(starters)) == ["eplus.py", "eplus.py: defines energyplus_binary"]
