@@ -133,4 +133,9 @@ def test_wallcal_run_finds_the_study_s_own_posterior_output(tmp_path):
     found, why = run.find_posterior(study)
     assert found is None and "another version of the study file" in why
     (post / "manifest.json").write_text(json.dumps({"study_sha256": study.sha256}))
+    found, why = run.find_posterior(study)  # a posterior of a wallcal before format versions
+    assert found is None and "without a format version" in why
+    (post / "manifest.json").write_text(
+        json.dumps({"study_sha256": study.sha256, "command": "posterior", **format_entries("posterior")})
+    )
     assert run.find_posterior(study) == (post.resolve(), "")

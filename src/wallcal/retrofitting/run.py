@@ -234,7 +234,8 @@ def base_wall_from(study, wall: Wall | None, from_dir: Path | None) -> tuple[Wal
 
 def find_posterior(study) -> tuple[Path | None, str]:
     """The ``wallcal posterior`` output in its default place (``posterior/`` next to the study) when it was
-    written for this very study file (same sha256 in its manifest); else None and why (for ``wallcal run``)."""
+    written for this very study file (same sha256 in its manifest) in the format this wallcal reads; else None
+    and why (for ``wallcal run``)."""
     if study.path is None:
         return None, "the study has no file"
     d = Path(study.path).resolve().parent / "posterior"
@@ -246,6 +247,12 @@ def find_posterior(study) -> tuple[Path | None, str]:
         sha = None
     if not sha or sha != study.sha256:
         return None, f"the posterior output at {d} was written for another version of the study file"
+    from ..outputs import OutputFormatError, check_format
+
+    try:
+        check_format(d, "posterior")
+    except OutputFormatError as exc:
+        return None, str(exc)
     return d, ""
 
 
