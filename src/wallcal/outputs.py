@@ -235,7 +235,6 @@ def check_format(directory: str | Path, command: str) -> dict:
     return manifest
 
 
-
 def write_manifest(directory: str | Path, manifest: dict) -> Path:
     """Write ``manifest.json`` (wallcal version, time, ``manifest``, its format version) into a folder written
     inside another command's output (a stage of ``wallcal run`` that another command may read); returns it."""
