@@ -16,6 +16,7 @@ from wallcal.building.model import select_surfaces, with_wall
 from wallcal.building.run import run_building
 from wallcal.cli import main
 from wallcal.errors import StudyError
+from wallcal.outputs import format_entries
 from wallcal.weather import resolve_weather
 
 CHICAGO = "USA_IL_Chicago-OHare.Intl.AP.725300_TMY3.epw"
@@ -35,6 +36,11 @@ def _study(tmp_path, building: str = "") -> str:
     return str(path)
 
 
+def _manifest(d, command):
+    """The manifest.json ``wallcal <command>`` writes: its format version (wallcal.outputs)."""
+    (d / "manifest.json").write_text(json.dumps({"command": command, **format_entries(command)}))
+
+
 @pytest.fixture(scope="module")
 def big_run(tmp_path_factory):
     """One command over a week of January: the study wall, an identical copy, a wall with layer 3's
@@ -52,6 +58,7 @@ def big_run(tmp_path_factory):
     chain = np.linspace(0.0, 1.0, 8).reshape(4, 2, 1)
     np.savez(post / "chain.npz", chain=chain, names=np.array(["conductivity[3]"]), lower=[0.03], upper=[0.05])
     (post / "posterior.json").write_text(json.dumps({"burn": 0, "thin": 1}))
+    _manifest(post, "posterior")
     # the measured zone air: the study wall's free-floating run over 10-14 January, hourly
     model = reference_building()
     mdl = with_wall(
@@ -189,14 +196,17 @@ def test_from_retrofit_crosscheck_and_many_calibrate_outputs(tmp_path):
     )
     (ret / "variant_1.toml").write_text(dump_wall(study.wall))
     (ret / "variant_2.toml").write_text(dump_wall(study.wall.replace_layer("3", conductivity=0.02)))
+    _manifest(ret, "retrofit")
     cc = tmp_path / "cc"
     (cc / "walls").mkdir(parents=True)
     (cc / "crosscheck.csv").write_text("wall,engine\n")
     (cc / "walls" / "opt1.toml").write_text(dump_wall(study.wall))
+    _manifest(cc, "crosscheck")
     many = tmp_path / "many"
     for name in ("s1", "s2"):
         (many / name).mkdir(parents=True)
         (many / name / "calibrated_wall.toml").write_text(dump_wall(study.wall))
+    _manifest(many, "calibrate")
     walls = collect_walls(study, (), [ret, cc, many], 5)
     assert [(w.name, w.kind) for w in walls] == [
         ("as built", "variant"),

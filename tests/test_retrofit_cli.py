@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -10,6 +12,7 @@ from conftest import assert_clean_error
 from retrofit_helpers import study_with_retrofit, write_epw, year_temperature
 from wallcal import dump_wall, load_study
 from wallcal.cli import main
+from wallcal.outputs import format_entries
 
 OK_VARIANTS = """
 [[retrofit.variants]]
@@ -47,6 +50,7 @@ def test_from_a_calibrate_output_uses_its_calibrated_wall(tmp_path, capsys):
     wall = study.wall.replace_layer("7", conductivity=0.07)
     wall = wall.replace(layers=tuple(layer.replace(vapour_resistance_factor=None) for layer in wall.layers))
     (cal / "calibrated_wall.toml").write_text(dump_wall(wall))
+    (cal / "manifest.json").write_text(json.dumps({"command": "calibrate", **format_entries("calibrate")}))
     code, cap, out = _run(tmp_path, capsys, OK_VARIANTS, "--from", str(cal))
     assert code == 0, cap.err
     tab = pd.read_csv(out / "variants.csv")

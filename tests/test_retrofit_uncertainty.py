@@ -12,6 +12,7 @@ from retrofit_helpers import study_with_retrofit, write_epw, year_temperature
 from wallcal import load_study, weather
 from wallcal.calibration.space import parse_space
 from wallcal.cli import main
+from wallcal.outputs import format_entries
 from wallcal.retrofitting import boundary, run
 
 BODY = """
@@ -41,6 +42,7 @@ def _posterior_dir(study, d, seed=0):
         upper=sp.upper,
     )
     (d / "posterior.json").write_text(json.dumps({"burn": 10, "thin": 2}))
+    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
     return sp, chain
 
 
@@ -131,4 +133,9 @@ def test_wallcal_run_finds_the_study_s_own_posterior_output(tmp_path):
     found, why = run.find_posterior(study)
     assert found is None and "another version of the study file" in why
     (post / "manifest.json").write_text(json.dumps({"study_sha256": study.sha256}))
+    found, why = run.find_posterior(study)  # a posterior of a wallcal before format versions
+    assert found is None and "without a format version" in why
+    (post / "manifest.json").write_text(
+        json.dumps({"study_sha256": study.sha256, "command": "posterior", **format_entries("posterior")})
+    )
     assert run.find_posterior(study) == (post.resolve(), "")

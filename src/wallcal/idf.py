@@ -346,7 +346,7 @@ def epjson_schema() -> dict:
     if _SCHEMA is None:
         import json
 
-        from .engines.energyplus.runner import energyplus_binary
+        from .eplus import energyplus_binary
 
         path = energyplus_binary().parent / "Energy+.schema.epJSON"
         _SCHEMA = json.loads(path.read_text(encoding="utf-8"))

@@ -6,6 +6,10 @@ two runs from writing the same target at once; an interrupted run leaves the
 previous result (or nothing) and no temporary directory. Each result carries a
 ``manifest.json`` with the wallcal version, the study file's hash and the
 input data's hash.
+
+The output folders other commands read (``--from``) are a contract: each is written and read by one
+module (:data:`FORMATS`), and its ``manifest.json`` carries the folder's ``format_version``, which the
+reader checks (:func:`check_format`).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import os
 import shutil
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import WallcalError
@@ -64,6 +69,7 @@ def output_dir(target: str | Path, manifest: dict | None = None):
         yield tmp
         info = {"wallcal_version": _version(), "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
         info.update(manifest or {})
+        info.update(format_entries(info.get("command")))
         (tmp / "manifest.json").write_text(json.dumps(info, indent=2, default=str))
         old = None
         if target.exists():
@@ -144,3 +150,95 @@ def write_text_new(directory: str | Path, stem: str, text: str, suffix: str = ".
     finally:
         Path(tmp).unlink(missing_ok=True)
     raise WallcalError(f"{directory}: {names[0]} .. {names[-1]} all exist; move some away or choose another name")
+
+
+# ============================================================================ output formats (the contract)
+class OutputFormatError(WallcalError):
+    """An output folder this wallcal does not read: written by another format version, or without one."""
+
+
+@dataclass(frozen=True)
+class OutputFormat:
+    """An output folder another command reads: the command that writes it, its format version, the file that
+    tells it apart, and the module that writes and reads it (a typed reader beside the writer)."""
+
+    command: str
+    version: int
+    marker: str
+    module: str
+
+
+#: The manifest entry holding an output folder's format version.
+FORMAT_KEY = "format_version"
+#: Every output folder another command reads, by the command that writes it. Raise a version when the
+#: folder's files change in a way an older reader would misread.
+FORMATS: dict[str, OutputFormat] = {
+    f.command: f
+    for f in (
+        OutputFormat("calibrate", 1, "calibrated_wall.toml", "wallcal.calibration.output"),
+        OutputFormat("crosscheck", 1, "crosscheck.csv", "wallcal.crosscheck"),
+        OutputFormat("posterior", 1, "chain.npz", "wallcal.analysis.posterior"),
+        OutputFormat("retrofit", 1, "retrofit.json", "wallcal.retrofitting.run"),
+    )
+}
+
+
+def format_entries(command: str | None) -> dict:
+    """The manifest entries of ``command``'s output format (``{}`` for an output no command reads)."""
+    fmt = FORMATS.get(command or "")
+    return {FORMAT_KEY: fmt.version} if fmt is not None else {}
+
+
+def check_format(directory: str | Path, command: str) -> dict:
+    """Check that ``directory`` is a ``command`` output of the format version this wallcal reads.
+
+    Returns
+    -------
+    dict
+        The folder's ``manifest.json``.
+
+    Raises
+    ------
+    OutputFormatError
+        No readable manifest.json, no format version in it (an output of a wallcal before format
+        versions), another command's output, or another version; the message names the folder, the
+        version found and the one expected.
+    """
+    d = Path(directory)
+    expected = FORMATS[command].version
+    again = f"run 'wallcal {command}' again to write it in format {expected}"
+    path = d / "manifest.json"
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise OutputFormatError(
+            f"{d}: no manifest.json, so no output format version (expected a {command} output of format "
+            f"{expected}); {again}"
+        ) from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise OutputFormatError(f"{path}: not readable ({exc}); {again}") from exc
+    if not isinstance(manifest, dict):
+        raise OutputFormatError(f"{path}: not a JSON object; {again}")
+    found_command = manifest.get("command")
+    if found_command is not None and found_command != command:
+        raise OutputFormatError(f"{d}: a {found_command} output, not a {command} output")
+    found = manifest.get(FORMAT_KEY)
+    if found is None:
+        raise OutputFormatError(
+            f"{d}: a {command} output without a format version (written by an older wallcal), expected "
+            f"format {expected}; {again}"
+        )
+    if found != expected:
+        raise OutputFormatError(
+            f"{d}: a {command} output of format version {found}, this wallcal reads version {expected}; {again}"
+        )
+    return manifest
+
+
+def write_manifest(directory: str | Path, manifest: dict) -> Path:
+    """Write ``manifest.json`` (wallcal version, time, ``manifest``, its format version) into a folder written
+    inside another command's output (a stage of ``wallcal run`` that another command may read); returns it."""
+    info = {"wallcal_version": _version(), "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    info.update(manifest)
+    info.update(format_entries(info.get("command")))
+    return write_text_atomic(Path(directory) / "manifest.json", json.dumps(info, indent=2, default=str))

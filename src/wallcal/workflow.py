@@ -185,6 +185,14 @@ def _stage_sensitivity(ctx: RunContext, d: Path, so: StageOutput):
     ctx.results["sensitivity"] = res
 
 
+def write_stage_manifest(ctx: RunContext, d: Path, command: str) -> None:
+    """A stage folder that is another command's output gets that command's manifest (its format version)."""
+    from .outputs import write_manifest
+    from .simulation import manifest_of
+
+    write_manifest(d, {**manifest_of(ctx.study, command), "written_by": "wallcal run"})
+
+
 def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
     from .calibration import calibrate
 
@@ -197,6 +205,7 @@ def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
         ctx.study, prepared=ctx.prepared, progress=ctx.progress, settings={"generations": 8} if quick else None
     )
     res.write_into(d)
+    write_stage_manifest(ctx, d, "calibrate")  # a calibrate output: 'wallcal building/retrofit --from' read it
     so.files += [
         "calibrated_wall.toml",
         "calibration.json",
@@ -253,7 +262,7 @@ def _stage_diagnose(ctx: RunContext, d: Path, so: StageOutput):
 
 
 def _stage_crosscheck(ctx: RunContext, d: Path, so: StageOutput):
-    from .comparison import compare_engines
+    from .crosscheck import crosscheck
     from .engines import DEFAULT_ENGINE
 
     cal = ctx.results.get("calibration")
@@ -261,19 +270,17 @@ def _stage_crosscheck(ctx: RunContext, d: Path, so: StageOutput):
         so.status = "skipped"
         so.message = "no calibrated wall"
         return
-    rows = []
-    targets = list(cal.space.targets)
-    for label, wall in (("base case", ctx.study.wall), ("calibrated", cal.wall_opt)):
-        comp = ctx.results.get("comparison") if label == "base case" else None  # the base case already ran
-        if comp is None:
-            comp = compare_engines(ctx.study.replace(wall=wall), ctx.engines or [DEFAULT_ENGINE])
-        for eng, r in comp.results.items():
-            met = r.metrics.set_index("signal")
-            rows.append({"wall": label, "engine": eng, **{f"RMSE {t}": met.loc[t, "rmse"] for t in targets}})
-    df = pd.DataFrame(rows)
-    df.to_csv(d / "crosscheck.csv", index=False, float_format="%.6g")
-    so.files.append("crosscheck.csv")
-    so.tables.append(("Walls x engines: RMSE per target (Table VIII)", df.set_index(["wall", "engine"]), ()))
+    comp = ctx.results.get("comparison")  # the base case already ran
+    res = crosscheck(
+        ctx.study,
+        {"base case": ctx.study.wall, "calibrated": cal.wall_opt},
+        ctx.engines or [DEFAULT_ENGINE],
+        targets=cal.space.targets,
+        known={"base case": comp} if comp is not None else None,
+    )
+    so.files += res.write_into(d)
+    write_stage_manifest(ctx, d, "crosscheck")  # a crosscheck output: 'wallcal building --from' reads it
+    so.tables.append(("Walls x engines: RMSE per target (Table VIII)", res.table.set_index(["wall", "engine"]), ()))
 
 
 def _stage_standards(ctx: RunContext, d: Path, so: StageOutput):

@@ -25,6 +25,10 @@ extensions within :data:`TIE_DELTA` of the best adopted together), or by :data:`
 the structure so far holds some of the study's parameters at a bound of their prior box and the extension frees
 one of them: such a structure fails its own check and is no null worth protecting. The extended study
 (:attr:`Diagnosis.study`) is the study with the adopted extensions added to its ``[calibration]`` table.
+
+This module is the run and its result; beside it, :mod:`.diagnose_candidates` (the residual analysis and the
+proposed extensions), :mod:`.diagnose_scoring` (the criterion and the warm-started recalibration) and
+:mod:`.diagnose_adoption` (forward selection). Their names are importable from here.
 """
 
 from __future__ import annotations
@@ -43,6 +47,33 @@ import pandas as pd
 
 from ..errors import StudyError, WallcalError
 
+# the candidates, their scoring and the adoption rule live beside this module (the run and its result); their
+# names are importable from here as before
+from .diagnose_adoption import (  # noqa: F401
+    ADOPT_DELTA,
+    BOUND_BAND,
+    MAX_ADOPTED,
+    MAX_TRIALS,
+    POLISH_MARGIN,
+    TIE_DELTA,
+    WEAK_DELTA,
+    forward_select,
+    held_at_bounds,
+)
+from .diagnose_candidates import (  # noqa: F401
+    COEFFICIENT_RANGE,
+    CONTACT_BOUNDS,
+    DEPTH_RANGE,
+    INSULATION_LAMBDA,
+    OFFSET_ACCURACIES,
+    OFFSET_SPREAD,
+    Extension,
+    propose,
+    residual_analysis,
+    unit_label,
+)
+from .diagnose_scoring import FTOL, MAX_JACOBIANS, ar1_loglike, ar1_profile, debiased_residuals, refine  # noqa: F401
+
 __all__ = [
     "ADOPT_DELTA",
     "WEAK_DELTA",
@@ -58,375 +89,16 @@ __all__ = [
     "residual_analysis",
 ]
 
-#: BIC decrease needed to adopt an extension (Kass and Raftery: > 10 is very strong evidence)
-ADOPT_DELTA = 10.0
-#: an insulation layer (candidate for lambda(T)) conducts less than this [W/(m K)]
-INSULATION_LAMBDA = 0.1
-#: half-range of a candidate probe depth [m]
-DEPTH_RANGE = 0.01
-#: bounds of a candidate contact resistance [m2K/W]
-CONTACT_BOUNDS = (0.0, 0.5)
-#: range of a candidate conductivity temperature coefficient above its base value [1/K]; an insulation's
-#: conductivity rises with temperature (ISO 10456), so the lower bound is min(base, 0)
-COEFFICIENT_RANGE = 0.02
-#: half-range of a candidate sensor offset: this many times the sensor's accuracy, and at least
-#: OFFSET_SPREAD times the standard deviation of its measured signal
-OFFSET_ACCURACIES = 2.0
-OFFSET_SPREAD = 0.25
 #: prior sd of a target's constant sensor bias, integrated out of the criterion, as a share of its stated
 #: accuracy (a 95 % bound: its sd is about half of it; the posterior's error model)
 BIAS_ACCURACY_SHARE = 0.5
-#: BIC decrease that suffices while the structure adopted so far is rejected by its own optimum - one of the study's
-#: parameters held at a bound of its prior box (Kass and Raftery: > 2 is "positive" evidence) - and the candidate
-#: frees it (see :func:`forward_select`)
-WEAK_DELTA = 2.0
-#: a parameter whose optimum lies within this share of its range from a bound is held at that bound
-BOUND_BAND = 0.005
-#: extensions whose criterion lies within this of the best one's are tied: adopted together (Kass and Raftery:
-#: a BIC difference below 2 is "not worth more than a bare mention")
-TIE_DELTA = 2.0
-#: candidates whose criterion lies within this of a step's best are fitted to convergence before they are compared
-POLISH_MARGIN = 25.0
 #: the base structure's re-polish (and a close contender's) may take this many times the Jacobians of a candidate's
 BASE_JACOBIANS = 4
-#: Jacobians allowed in each warm-started recalibration
-MAX_JACOBIANS = 8
 #: a probe depth that starts on a contact's double node is also fitted from this far off it on each side [m]
 #: (at most NODE_SHARE of its range; see :func:`node_starts`)
 NODE_STEP = 0.001
 NODE_SHARE = 0.1
-#: relative change of the least-squares cost that ends a recalibration (a BIC change of 1 is about 2 / N)
-FTOL = 1e-5
-#: after the single candidates, each forward step tries the best few useful ones only
-MAX_TRIALS = 3
-#: most extensions adopted together
-MAX_ADOPTED = 4
 CRITERION = "delta_bic"
-
-
-# ============================================================================ the criterion
-def ar1_loglike(e: np.ndarray, mask: np.ndarray, bias_sd: float = 0.0) -> tuple[float, int, float]:
-    """Maximised conditional AR(1) Gaussian log-likelihood of one residual series, a constant sensor bias with
-    a Gaussian prior integrated out.
-
-    The residuals follow e_t = b + u_t, u_t = phi u_{t-1} + eta_t, eta ~ N(0, s^2), with a constant bias
-    b ~ N(0, bias_sd^2) (the posterior's error model: a sensor's bias within its stated accuracy is part of
-    the error, not of the structure). Conditioning on the first value of every gap-free run, the m consecutive
-    valid pairs give innovations r_t - c b with r_t = e_t - phi e_{t-1} and c = 1 - phi; integrating b out
-    exactly,
-
-        log L = -m/2 ln(2 pi s^2) - sum (r_t - c b*)^2 / (2 s^2) - b*^2 / (2 bias_sd^2)
-                - 1/2 ln(1 + m c^2 bias_sd^2 / s^2),
-
-    b* = c sum r_t / (m c^2 + s^2 / bias_sd^2) the bias's posterior mean, maximised over phi and s^2 by
-    alternating their closed-form updates with b* (this maximises the joint density of phi, s and b; the last
-    term's dependence on phi and s is left out of the maximisation, which costs a few thousandths). With
-    ``bias_sd`` 0 (no bias: it shows as misfit) this is -m/2 (ln(2 pi s^2) + 1) with
-    phi = sum e_t e_{t-1} / sum e_{t-1}^2 and s^2 the mean squared innovation.
-
-    Parameters
-    ----------
-    e : ndarray, shape (n,)
-        Residuals [unit of the signal].
-    mask : ndarray of bool, shape (n,)
-        Valid samples.
-    bias_sd : float
-        Prior sd of the sensor's constant bias [unit of the signal]; 0: no bias.
-
-    Returns
-    -------
-    (log L, m, phi)
-    """
-    return _ar1_fit(e, mask, bias_sd)[:3]
-
-
-def _ar1_fit(e, mask, bias_sd=0.0) -> tuple[float, int, float, float, float]:
-    """:func:`ar1_loglike` and its innovation sd s and bias b*."""
-    e = np.where(mask, e, 0.0)
-    pair = mask[1:] & mask[:-1]
-    m = int(pair.sum())
-    if m < 2:
-        return 0.0, 0, 0.0, 1.0, 0.0
-    a, p = e[1:][pair], e[:-1][pair]
-
-    def ar(b):
-        den = float(np.sum((p - b) ** 2))
-        phi = float(np.clip(np.sum((a - b) * (p - b)) / den, -0.999, 0.999)) if den > 0 else 0.0
-        s2 = max(float(np.mean(((a - b) - phi * (p - b)) ** 2)), 1e-300)
-        return phi, s2
-
-    b = 0.0
-    phi, s2 = ar(b)
-    if not bias_sd > 0:
-        return -0.5 * m * (math.log(2 * math.pi * s2) + 1.0), m, phi, math.sqrt(s2), 0.0
-    t2 = float(bias_sd) ** 2
-    for _ in range(50):
-        c = 1.0 - phi
-        b_new = c * float(np.sum(a - phi * p)) / (m * c * c + s2 / t2)
-        phi, s2 = ar(b_new)
-        done = abs(b_new - b) <= 1e-9 * (abs(b_new) + math.sqrt(s2))
-        b = b_new
-        if done:
-            break
-    c = 1.0 - phi
-    b = c * float(np.sum(a - phi * p)) / (m * c * c + s2 / t2)
-    q = float(np.sum((a - phi * p - c * b) ** 2))
-    s2 = max(q / m, 1e-300)
-    ll = -0.5 * m * (math.log(2 * math.pi * s2) + 1.0) - 0.5 * b * b / t2 - 0.5 * math.log1p(m * c * c * t2 / s2)
-    return ll, m, phi, math.sqrt(s2), b
-
-
-def ar1_profile(E: np.ndarray, mask: np.ndarray, bias_sd=None) -> tuple[float, int, np.ndarray, np.ndarray]:
-    """The AR(1) fit of every target's residuals ``E`` (targets x times), each with its sensor bias of prior sd
-    ``bias_sd[k]`` integrated out (None: no bias): (log L summed over the targets, N pairs, phi per target,
-    innovation sd per target)."""
-    ll, n = 0.0, 0
-    phi = np.zeros(E.shape[0])
-    sd = np.ones(E.shape[0])
-    tau = np.zeros(E.shape[0]) if bias_sd is None else np.asarray(bias_sd, dtype=float)
-    for k in range(E.shape[0]):
-        lk, mk, phi[k], sk, _ = _ar1_fit(E[k], mask[k], float(tau[k]))
-        ll += lk
-        n += mk
-        if mk:
-            sd[k] = sk
-    return ll, n, phi, sd
-
-
-# ============================================================================ residual analysis
-def residual_analysis(ev, x, times) -> pd.DataFrame:
-    """Bias, lag, daily pattern and autocorrelation of each target's residuals (simulated - measured) at ``x``.
-
-    Columns: ``rmse``, ``bias`` (mean residual), ``sd`` (about the bias), ``phi`` (lag-1 autocorrelation of
-    the de-meaned residuals), ``lag_min`` (the shift of the simulated series [min] that best matches the
-    measured one; positive: the model is late), ``daily_amplitude`` (peak-to-peak of the mean residual per
-    hour of the day) and ``daily_share`` (the part of the residual variance about the bias that the daily
-    pattern explains).
-    """
-    from .posterior import lag1
-
-    sim = ev.simulate(np.atleast_2d(x))[0]
-    y = ev.y + ev.space.offsets(np.atleast_2d(x))[0][:, None]
-    times = pd.DatetimeIndex(times)
-    step = float(np.median(np.diff(times.asi8))) / 1e9 if len(times) > 1 else 300.0
-    hours = times.hour.to_numpy()
-    rows = []
-    for k, name in enumerate(ev.space.targets):
-        m = ev.mask[k]
-        e = np.where(m, sim[k] - y[k], np.nan)
-        ev_ = e[m]
-        bias = float(np.mean(ev_))
-        d = np.where(m, e - bias, 0.0)
-        sd = float(np.std(ev_))
-        phi = lag1(d, m)
-        # lag: shift of the simulated series (up to 3 h) minimising the de-meaned squared difference
-        max_shift = int(min(3 * 3600 / step, len(e) // 4))
-        shifts = np.arange(-max_shift, max_shift + 1)
-        errs = np.full(len(shifts), np.inf)
-        for i, s in enumerate(shifts):
-            a = sim[k][max(0, s) : len(e) + min(0, s)]
-            b = y[k][max(0, -s) : len(e) - max(0, s)]
-            mm = m[max(0, -s) : len(e) - max(0, s)]
-            if mm.sum() < 10:
-                continue
-            diff = (a - b)[mm]
-            errs[i] = float(np.mean((diff - diff.mean()) ** 2))
-        i = int(np.argmin(errs))
-        best_s = float(shifts[i])
-        if 0 < i < len(shifts) - 1 and np.all(np.isfinite(errs[i - 1 : i + 2])):  # parabola through the minimum
-            den = errs[i - 1] - 2 * errs[i] + errs[i + 1]
-            if den > 0:
-                best_s += 0.5 * (errs[i - 1] - errs[i + 1]) / den
-        hourly = pd.Series(d[m]).groupby(hours[m]).mean()
-        amp = float(hourly.max() - hourly.min()) if len(hourly) else 0.0
-        var = float(np.mean(d[m] ** 2))
-        share = float(np.sum(hourly.reindex(hours[m]).to_numpy() ** 2) / (var * m.sum())) if var > 0 else 0.0
-        rows.append(
-            {
-                "target": name,
-                "rmse": float(np.sqrt(np.mean(ev_**2))),
-                "bias": bias,
-                "sd": sd,
-                "phi": phi,
-                "lag_min": best_s * step / 60.0 + 0.0,
-                "daily_amplitude": amp,
-                "daily_share": min(share, 1.0),
-            }
-        )
-    return pd.DataFrame(rows).set_index("target")
-
-
-# ============================================================================ candidates
-@dataclass(frozen=True)
-class Extension:
-    """One candidate extension of the parameter space.
-
-    Attributes
-    ----------
-    name : str
-        Its parameter name, e.g. ``"depth[T3A]"``.
-    kind : str
-        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient`` or ``offset``.
-    table : dict
-        Its ``[[calibration.parameters]]`` entry as written into the extended study.
-    reason : str
-        What in the residuals points to it, in words.
-    """
-
-    name: str
-    kind: str
-    table: dict
-    reason: str = ""
-
-
-def _fmt_unit(study, target) -> str:
-    return "W/m2" if study.sensor(target).quantity == "heat_flux" else "K"
-
-
-def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list[Extension]:
-    """Candidate extensions of ``space`` for ``study`` (those already in the space are left out).
-
-    Parameters
-    ----------
-    study : Study
-    space : ParameterSpace
-    residuals : DataFrame, optional
-        :func:`residual_analysis` at the calibrated point (for the reasons given).
-    y : dict, optional
-        Target -> valid measured samples (bounds of a relative-accuracy sensor's offset).
-    """
-    from .identifiability import sensor_sigma
-
-    wall = study.wall
-    have = set(space.names)
-    inter = wall.interfaces
-    ids = [layer.id for layer in wall.layers]
-    res = residuals if residuals is not None else pd.DataFrame()
-
-    def why(t, what):
-        if t not in res.index:
-            return what
-        r = res.loc[t]
-        u = _fmt_unit(study, t)
-        return (
-            f"{what}; {t}: bias {r['bias']:+.3g} {u}, lag {r['lag_min']:+.1f} min, daily pattern "
-            f"{r['daily_amplitude']:.3g} {u} peak to peak"
-        )
-
-    out: list[Extension] = []
-    probes = [t for t in space.targets if study.sensor(t).quantity == "temperature"]
-    for t in probes:
-        name = f"depth[{t}]"
-        if name in have:
-            continue
-        d = wall.probe(t).depth
-        lo, hi = max(0.0, d - DEPTH_RANGE), min(wall.thickness, d + DEPTH_RANGE)
-        out.append(
-            Extension(
-                name,
-                "depth",
-                {"probe": t, "property": "depth", "bounds": [round(lo, 9), round(hi, 9)], "bounds_kind": "absolute"},
-                why(t, f"probe {t} placed off its nominal depth {d:g} m"),
-            )
-        )
-    seen = set()
-    for t in probes:
-        d = wall.probe(t).depth
-        near = np.flatnonzero(np.isclose(inter, d, atol=1e-6, rtol=0))
-        if len(near):
-            faces = [int(near[0])]
-        else:
-            li = int(np.searchsorted(inter, d) - 1)
-            faces = [li, li + 1]
-        for f in faces:
-            if f <= 0 or f >= len(wall.layers) or f in seen:
-                continue  # the wall's faces have no contact resistance
-            seen.add(f)
-            li = f - 1  # the contact resistance belongs to the layer on the exterior side
-            name = f"contact_resistance[{ids[li]}]"
-            if name in have or any(p.property == "contact_resistance" and li in p.layers for p in space.parameters):
-                continue
-            out.append(
-                Extension(
-                    name,
-                    "contact_resistance",
-                    {
-                        "layers": [ids[li]],
-                        "property": "contact_resistance",
-                        "bounds": list(CONTACT_BOUNDS),
-                        "bounds_kind": "absolute",
-                    },
-                    why(t, f"a contact resistance between layers {ids[li]} and {ids[li + 1]}, next to probe {t}"),
-                )
-            )
-    # lambda(T): every insulation layer, grouped as the conductivity parameters group them
-    groups: list[tuple[int, ...]] = []
-    for p in space.parameters:
-        if p.property == "conductivity" and p.layers not in groups:
-            groups.append(p.layers)
-    for i in range(len(wall.layers)):
-        if not any(i in g for g in groups):
-            groups.append((i,))
-    taken = {i for p in space.parameters if p.property == "conductivity_temperature_coefficient" for i in p.layers}
-    eligible = []
-    for g in groups:
-        layers = [wall.layers[i] for i in g]
-        if any(
-            lay.is_massless
-            or lay.conductivity is None
-            or lay.conductivity >= INSULATION_LAMBDA
-            or lay.conductivity_table is not None
-            or i in taken
-            for i, lay in zip(g, layers, strict=True)
-        ):
-            continue
-        if len({lay.conductivity_temperature_coefficient for lay in layers}) == 1:
-            eligible.append(tuple(g))
-    # each group apart, and (with two or more) all of them sharing one coefficient: the coefficient is a property
-    # of the insulation's kind (fibre and gas; ISO 10456 gives one per material family), so one shared value is
-    # the simplest hypothesis, and the criterion weighs it against separate ones
-    shared = [tuple(sorted(i for g in eligible for i in g))] if len(eligible) > 1 else []
-    for g in eligible + shared:
-        f0s = {wall.layers[i].conductivity_temperature_coefficient for i in g}
-        if len(f0s) != 1:
-            continue
-        f0 = f0s.pop()
-        lab = ",".join(ids[i] for i in g)
-        what = "sharing one coefficient" if g in shared else "depending on temperature"
-        out.append(
-            Extension(
-                f"conductivity_temperature_coefficient[{lab}]",
-                "conductivity_temperature_coefficient",
-                {
-                    "layers": [ids[i] for i in g],
-                    "property": "conductivity_temperature_coefficient",
-                    "bounds": [min(f0, 0.0), f0 + COEFFICIENT_RANGE],
-                    "bounds_kind": "absolute",
-                },
-                f"conductivity of insulation layer(s) {lab} {what} (lambda(T))",
-            )
-        )
-    for t in space.targets:
-        name = f"offset[{t}]"
-        if name in have:
-            continue
-        yt = np.asarray((y or {}).get(t, [1.0]), dtype=float)
-        sig = sensor_sigma(study, t, yt)
-        if not np.isfinite(sig) or sig <= 0:
-            sig = 0.0
-        # a relative accuracy (a heat-flux meter's gain) says little about an offset: at least a quarter of the
-        # signal's standard deviation
-        half = max(OFFSET_ACCURACIES * sig, OFFSET_SPREAD * float(np.std(yt)))
-        half = float(f"{half:.3g}") if half > 0 else 1.0
-        out.append(
-            Extension(
-                name,
-                "offset",
-                {"sensor": t, "property": "offset", "bounds": [-half, half]},
-                why(t, f"a constant offset of sensor {t}"),
-            )
-        )
-    return out
 
 
 # ============================================================================ the result
@@ -472,7 +144,7 @@ class Diagnosis:
     def summary(self) -> str:
         """Which structure the data support and by how much, in words."""
         study = self.base_study
-        units = {t: _fmt_unit(study, t) for t in self.rmse_base}
+        units = {t: unit_label(study, t) for t in self.rmse_base}
         c = self.candidates
         lines = []
         if self.adopted:
@@ -646,77 +318,6 @@ def start_point(study, space, start, progress) -> tuple[np.ndarray, str]:
     raise WallcalError(f"--from {start}: no such calibration output directory or wall file")
 
 
-def refine(residuals, u0, max_jacobians: int = MAX_JACOBIANS, ftol: float = FTOL, h: float = 1e-6):
-    """Warm-started bounded Levenberg-Marquardt in the unit box; every engine call is one batch.
-
-    Each iteration runs one batch of n forward-difference runs (the Jacobian) and one batch of four trial
-    steps (damping lambda/10, lambda, 10 lambda, 100 lambda, each clipped to the box; parameters at a bound
-    whose gradient points out of the box stay there) and keeps the best trial. The normal equations are
-    n x n (no decomposition of the tall Jacobian).
-
-    Parameters
-    ----------
-    residuals : callable
-        ``residuals(U) -> R``, U shape (c, n) in unit coordinates, R shape (c, m).
-    u0 : ndarray, shape (n,)
-    max_jacobians : int
-    ftol : float
-        Stop when an accepted step lowers the cost by less than this fraction.
-
-    Returns
-    -------
-    (u, runs)
-        The best point and the number of simulations run.
-    """
-    u = np.clip(np.asarray(u0, dtype=float), 0.0, 1.0)
-    n = len(u)
-    r = residuals(u[None])[0]
-    cost = float(np.einsum("m,m->", r, r))
-    runs = 1
-    lam = 1e-3
-    for _ in range(max_jacobians):
-        step = np.where(u + h > 1.0, -h, h)
-        U = np.repeat(u[None], n, axis=0)
-        U[np.arange(n), np.arange(n)] += step
-        D = (residuals(U) - r[None]) / step[:, None]  # the Jacobian's transpose, (n, m)
-        runs += n
-        # einsum, not BLAS: on a shared machine a threaded BLAS product of this tall matrix can take 100x longer
-        A = np.einsum("im,jm->ij", D, D)
-        g = np.einsum("im,m->i", D, r)
-        free = ~(((u <= 0.0) & (g > 0)) | ((u >= 1.0) & (g < 0)))
-        if not free.any():
-            break
-        Af, gf = A[np.ix_(free, free)], g[free]
-        d = np.diag(Af).copy()
-        d[d <= 0] = 1.0
-        lams = lam * np.array([0.1, 1.0, 10.0, 100.0])
-        trials = []
-        for lm in lams:
-            try:
-                delta = np.linalg.solve(Af + lm * np.diag(d), -gf)
-            except np.linalg.LinAlgError:
-                delta = -gf / (d * (1 + lm))
-            ut = u.copy()
-            ut[free] = np.clip(u[free] + delta, 0.0, 1.0)
-            trials.append(ut)
-        T = np.array(trials)
-        R = residuals(T)
-        runs += len(T)
-        costs = np.einsum("cm,cm->c", R, R)
-        costs = np.where(np.isfinite(costs), costs, np.inf)
-        k = int(np.argmin(costs))
-        if not costs[k] < cost:
-            lam *= 1000.0
-            if lam > 1e10:
-                break
-            continue
-        gain = (cost - costs[k]) / cost if cost > 0 else 0.0
-        u, r, cost, lam = T[k], R[k], float(costs[k]), max(lams[k] / 3.0, 1e-9)
-        if gain < ftol:
-            break
-    return u, runs
-
-
 def node_starts(space, wall, contact_layers, x) -> list[np.ndarray]:
     """The starts of a recalibration from ``x``: ``x`` itself, and where a probe's depth starts on a contact's
     double node, also just off the node on each side.
@@ -762,139 +363,6 @@ def node_starts(space, wall, contact_layers, x) -> list[np.ndarray]:
                 more.append(t)
         starts = starts + more
     return starts
-
-
-def held_at_bounds(space, x, names=None, band: float = BOUND_BAND) -> frozenset:
-    """The parameters of ``space`` (those in ``names``; default all) whose value in ``x`` [SI] lies within
-    ``band`` of its range from a bound of the prior box, in the space's unit coordinates."""
-    sides = space.bound_sides(x, band)
-    return frozenset(n for n, side in zip(space.names, sides, strict=True) if side and (names is None or n in names))
-
-
-def debiased_residuals(ev, X, bias_sd, noise) -> np.ndarray:
-    """The study's least-squares residuals with every target's constant sensor bias profiled out under its
-    prior: the objective sum_k w_k (sum_t (e_kt - b_k)^2 + noise_k^2 b_k^2 / bias_sd_k^2), minimised over b_k
-    in closed form, b_k = sum_t e_kt / (n_k + noise_k^2 / bias_sd_k^2) (b_k = 0 where bias_sd_k is 0).
-
-    The criterion integrates the same bias out, so the structure it scores is fitted under its own error
-    model: fitted on the raw errors, the wall's properties would absorb a sensor's bias.
-
-    Parameters
-    ----------
-    ev : Evaluator
-    X : ndarray, shape (c, n)
-        Parameter values [SI].
-    bias_sd, noise : ndarray, shape (n_targets,)
-        Prior sd of each target's bias and its noise sd [target unit].
-
-    Returns
-    -------
-    ndarray, shape (c, n_targets * n_times + n_targets)
-    """
-    from ..calibration.objective import residual_weights
-
-    e = ev.errors(np.atleast_2d(X))
-    w = np.sqrt(residual_weights(ev.space.objective, ev.n_valid, ev.weights, ev.scale))
-    tau = np.asarray(bias_sd, dtype=float)
-    has = tau > 0
-    ratio = np.where(has, np.asarray(noise, dtype=float) ** 2 / np.where(has, tau, 1.0) ** 2, np.inf)
-    b = np.einsum("ctk->ct", e) / (ev.n_valid + ratio)[None]  # e is 0 at missing samples
-    r = np.where(ev.mask[None], e - b[:, :, None], 0.0) * w[None, :, None]
-    prior = np.where(has, b * (np.asarray(noise) / np.where(has, tau, 1.0))[None], 0.0) * w[None]
-    return np.concatenate([r.reshape(e.shape[0], -1), prior], axis=1)
-
-
-def forward_select(base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED, held=None):
-    """Forward selection of extensions by the criterion (the ``bic`` of each fit; lower is better).
-
-    The best single candidate is adopted when it lowers the criterion by at least :data:`ADOPT_DELTA`; then the
-    :data:`MAX_TRIALS` best remaining useful candidates (those better than ``base`` alone) are each added to the
-    adopted set, and so on, at most ``max_adopted`` extensions. At each step the candidates within
-    :data:`POLISH_MARGIN` of the step's best are polished (fitted to convergence) before they are compared, and
-    those that end within :data:`TIE_DELTA` of the best are tied: adopted together with it when the set still
-    lowers the criterion by the step's threshold (the data cannot choose between them).
-
-    A structure whose optimum holds one of the study's parameters at a bound of its prior box (``held``) fails
-    its own check: its parameters compensate for what it lacks, so it is no plausible null, and the strong
-    evidence that protects a plausible one does not apply. While it holds some, a step in which no candidate
-    reaches :data:`ADOPT_DELTA` adopts the best candidate that lowers the criterion by at least
-    :data:`WEAK_DELTA` and frees at least one of them (its optimum leaves it inside the box).
-
-    Parameters
-    ----------
-    base : fit
-        The study's structure: attributes ``names`` (an empty tuple) and ``bic``.
-    singles : dict
-        Extension name -> its fit alone (attributes ``names``, ``bic``).
-    score : callable
-        ``score(names, warm) -> fit`` of a set of extensions, warm-started at the fit ``warm``.
-    polish : callable
-        ``polish(fit) -> fit`` continued to convergence.
-    compatible : callable
-        ``compatible(names) -> bool``: whether the extensions can be adopted together.
-    max_adopted : int
-    held : callable, optional
-        ``held(fit) -> frozenset`` of the study's parameters held at a bound at the fit's optimum. None: the
-        strong threshold only.
-
-    Returns
-    -------
-    (fit, adopted, tied, weak)
-        The adopted set's fit, its names, the tied groups as (names, criterion change against the best one
-        alone), and the steps taken on the weaker threshold as (names adopted, criterion change of the step,
-        parameters held before, parameters held after).
-    """
-    useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
-    current = base
-    adopted: tuple = ()
-    tied: list = []
-    weak: list = []
-    while len(adopted) < max_adopted:
-        if not adopted:
-            trials = [singles[n] for n in useful]
-        else:
-            pool = [n for n in useful if n not in adopted and compatible(adopted + (n,))][:MAX_TRIALS]
-            trials = [score(adopted + (n,), current) for n in pool]
-        if not trials:
-            break
-        # the close contenders are fitted to convergence before they are compared: a probe depth or a contact
-        # link moves slowly in a few Jacobians, and the ranking of near-equals must not depend on that
-        first = min(f.bic for f in trials)
-        trials = [polish(f) if f.bic <= first + POLISH_MARGIN else f for f in trials]
-        best = min(trials, key=lambda f: f.bic)
-        threshold = ADOPT_DELTA
-        before = frozenset() if held is None else held(current)
-        if best.bic > current.bic - ADOPT_DELTA:
-            # the structure so far fails its own check (parameters held at bounds): positive evidence suffices for
-            # a candidate that frees some of them
-            freeing = [f for f in trials if f.bic <= current.bic - WEAK_DELTA and before - held(f)] if before else []
-            if not freeing:
-                break
-            best = min(freeing, key=lambda f: f.bic)
-            threshold = WEAK_DELTA
-        # extensions that explain the misfit as well as the best one (within TIE_DELTA): the data cannot choose
-        # between them, so all are adopted and the posterior averages over them, rather than being conditional on
-        # an arbitrary choice
-        new = [n for n in best.names if n not in adopted]
-        ties = [
-            n
-            for f in sorted(trials, key=lambda f: f.bic)
-            if f is not best and f.bic <= best.bic + TIE_DELTA
-            for n in f.names
-            if n not in adopted and n not in new
-        ]
-        ties = [n for n in dict.fromkeys(ties) if compatible(tuple(best.names) + (n,))]
-        if ties and len(best.names) + len(ties) <= max_adopted:
-            both = score(tuple(best.names) + tuple(ties), best)
-            if both.bic <= current.bic - threshold and (threshold == ADOPT_DELTA or before - held(both)):
-                tied.append((new + ties, both.bic - best.bic))
-                new = new + ties
-                best = both
-        if threshold != ADOPT_DELTA:
-            weak.append((new, best.bic - current.bic, before, held(best)))
-        current = best
-        adopted = tuple(best.names)
-    return current, adopted, tied, weak
 
 
 class _Say:

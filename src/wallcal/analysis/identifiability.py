@@ -337,7 +337,7 @@ class IdentifiabilityResult:
             self.demo.to_csv(d / "flat_direction_demo.csv", float_format="%.6g")
         from .plots import plot_singular_values
 
-        plot_singular_values(self, d / "singular_values.png")
+        plot_singular_values(self, d / "singular_values.png", RTOL)
 
 
 def _phi(e: np.ndarray) -> float:

@@ -7,6 +7,7 @@ epJSON by :func:`wallcal.idf.idf_to_epjson`; a user's IDF model is converted by 
 
 The reference building (:func:`reference_building`, documented in docs/building.md)
 ----------------------------------------------------------------------------------
+Data, not code: the epJSON file ``reference_building.epJSON`` beside this module.
 One conditioned zone, 10 m (east-west) x 8 m (north-south) x 3 m high (floor area 80 m2, volume 240 m3),
 its long faces facing north and south:
 
@@ -27,23 +28,16 @@ from __future__ import annotations
 
 import copy
 import json
-import subprocess
 import tempfile
 from pathlib import Path
 
-from ..errors import DataError, StudyError, closest
+from ..errors import DataError, EngineError, StudyError, closest
 from ..idf import idf_to_epjson, wall_to_idf_objects
 from ..wall import Wall
 
 #: The construction name the wall gets in a model.
 WALL_CONSTRUCTION = "WALLCAL_WALL"
-#: Reference building geometry [m].
-LENGTH_X, LENGTH_Y, HEIGHT = 10.0, 8.0, 3.0
-WINDOW_TO_WALL = 0.2
-SILL, WINDOW_HEIGHT = 0.9, 1.5
-INTERNAL_GAINS_W_M2 = 5.0
-INFILTRATION_ACH = 0.3
-GROUND_TEMPERATURE = 10.0
+#: Default zone air set-points of the reference building's ideal loads [degC].
 HEATING_SETPOINT, COOLING_SETPOINT = 20.0, 26.0
 #: Zone of the reference building.
 ZONE = "ZONE"
@@ -73,38 +67,16 @@ DROPPED_OUTPUTS = (
 
 
 # ============================================================================ the reference building
-def _material(thickness, conductivity, density, specific_heat):
-    return {
-        "roughness": "MediumRough",
-        "thickness": thickness,
-        "conductivity": conductivity,
-        "density": density,
-        "specific_heat": specific_heat,
-        "thermal_absorptance": 0.9,
-        "solar_absorptance": 0.7,
-        "visible_absorptance": 0.7,
-    }
-
-
-def _surface(kind, construction, boundary, vertices):
-    return {
-        "surface_type": kind,
-        "construction_name": construction,
-        "zone_name": ZONE,
-        "outside_boundary_condition": boundary,
-        "sun_exposure": "SunExposed" if boundary == "Outdoors" else "NoSun",
-        "wind_exposure": "WindExposed" if boundary == "Outdoors" else "NoWind",
-        "number_of_vertices": len(vertices),
-        "vertices": [
-            {"vertex_x_coordinate": x, "vertex_y_coordinate": y, "vertex_z_coordinate": z} for x, y, z in vertices
-        ],
-    }
+#: The reference building's epJSON file, shipped with the package (package data).
+REFERENCE_BUILDING_FILE = Path(__file__).with_name("reference_building.epJSON")
 
 
 def reference_building(
     *, heating_setpoint: float = HEATING_SETPOINT, cooling_setpoint: float = COOLING_SETPOINT
 ) -> dict:
     """The bundled reference building as an epJSON dict, without its wall construction (see the module text).
+
+    Read from :data:`REFERENCE_BUILDING_FILE`; the two set-point schedules get the given values.
 
     Parameters
     ----------
@@ -117,165 +89,11 @@ def reference_building(
         epJSON objects; the four walls use the construction :data:`WALL_CONSTRUCTION`, which
         :func:`with_wall` adds.
     """
-    X, Y, H = LENGTH_X, LENGTH_Y, HEIGHT
-    # counter-clockwise seen from outside, upper-left corner first
-    walls = {
-        "WALL_SOUTH": [(0, 0, H), (0, 0, 0), (X, 0, 0), (X, 0, H)],
-        "WALL_EAST": [(X, 0, H), (X, 0, 0), (X, Y, 0), (X, Y, H)],
-        "WALL_NORTH": [(X, Y, H), (X, Y, 0), (0, Y, 0), (0, Y, H)],
-        "WALL_WEST": [(0, Y, H), (0, Y, 0), (0, 0, 0), (0, 0, H)],
-    }
-    surfaces = {name: _surface("Wall", WALL_CONSTRUCTION, "Outdoors", v) for name, v in walls.items()}
-    surfaces["ROOF"] = _surface("Roof", "WALLCAL_ROOF", "Outdoors", [(0, Y, H), (0, 0, H), (X, 0, H), (X, Y, H)])
-    surfaces["FLOOR"] = _surface("Floor", "WALLCAL_FLOOR", "Ground", [(0, 0, 0), (0, Y, 0), (X, Y, 0), (X, 0, 0)])
-    windows = {}
-    for name, v in walls.items():
-        (x0, y0, _), (x1, y1, _) = v[1], v[2]
-        length = ((x1 - x0) ** 2 + (y1 - y0) ** 2) ** 0.5
-        width = WINDOW_TO_WALL * length * H / WINDOW_HEIGHT
-        a = (length - width) / 2 / length
-        b = 1 - a
-        p0 = (x0 + a * (x1 - x0), y0 + a * (y1 - y0))
-        p1 = (x0 + b * (x1 - x0), y0 + b * (y1 - y0))
-        top, sill = SILL + WINDOW_HEIGHT, SILL
-        corners = [(p0[0], p0[1], top), (p0[0], p0[1], sill), (p1[0], p1[1], sill), (p1[0], p1[1], top)]
-        win = {
-            "surface_type": "Window",
-            "construction_name": "WALLCAL_WINDOW",
-            "building_surface_name": name,
-            "number_of_vertices": 4,
-        }
-        for k, (x, y, z) in enumerate(corners, 1):
-            win[f"vertex_{k}_x_coordinate"] = x
-            win[f"vertex_{k}_y_coordinate"] = y
-            win[f"vertex_{k}_z_coordinate"] = z
-        windows[name.replace("WALL", "WINDOW")] = win
-    return {
-        "Version": {"Version 1": {"version_identifier": "25.2"}},
-        "Building": {
-            "wallcal reference building": {
-                "north_axis": 0.0,
-                "terrain": "Suburbs",
-                "loads_convergence_tolerance_value": 0.04,
-                "temperature_convergence_tolerance_value": 0.4,
-                "solar_distribution": "FullExterior",
-                "maximum_number_of_warmup_days": 25,
-                "minimum_number_of_warmup_days": 6,
-            }
-        },
-        "GlobalGeometryRules": {
-            "GlobalGeometryRules 1": {
-                "starting_vertex_position": "UpperLeftCorner",
-                "vertex_entry_direction": "Counterclockwise",
-                "coordinate_system": "Relative",
-            }
-        },
-        "Zone": {ZONE: {"x_origin": 0.0, "y_origin": 0.0, "z_origin": 0.0, "multiplier": 1}},
-        "Material": {
-            "WALLCAL_ROOF_INSULATION": _material(0.24, 0.035, 30.0, 1030.0),
-            "WALLCAL_ROOF_CONCRETE": _material(0.20, 2.0, 2400.0, 1000.0),
-            "WALLCAL_FLOOR_XPS": _material(0.15, 0.035, 30.0, 1450.0),
-            "WALLCAL_FLOOR_CONCRETE": _material(0.15, 2.0, 2400.0, 1000.0),
-        },
-        "WindowMaterial:SimpleGlazingSystem": {
-            "WALLCAL_GLAZING": {"u_factor": 1.1, "solar_heat_gain_coefficient": 0.5, "visible_transmittance": 0.7}
-        },
-        "Construction": {
-            "WALLCAL_ROOF": {"outside_layer": "WALLCAL_ROOF_INSULATION", "layer_2": "WALLCAL_ROOF_CONCRETE"},
-            "WALLCAL_FLOOR": {"outside_layer": "WALLCAL_FLOOR_XPS", "layer_2": "WALLCAL_FLOOR_CONCRETE"},
-            "WALLCAL_WINDOW": {"outside_layer": "WALLCAL_GLAZING"},
-        },
-        "BuildingSurface:Detailed": surfaces,
-        "FenestrationSurface:Detailed": windows,
-        "Site:GroundTemperature:BuildingSurface": {
-            "Site:GroundTemperature:BuildingSurface 1": {
-                f"{m}_ground_temperature": GROUND_TEMPERATURE
-                for m in (
-                    "january february march april may june july august september october november december".split()
-                )
-            }
-        },
-        "ScheduleTypeLimits": {"WALLCAL_ANY": {}},
-        "Schedule:Constant": {
-            "WALLCAL_ON": {"schedule_type_limits_name": "WALLCAL_ANY", "hourly_value": 1.0},
-            "WALLCAL_CONTROL": {"schedule_type_limits_name": "WALLCAL_ANY", "hourly_value": 4.0},
-            "WALLCAL_HEATING_SETPOINT": {"schedule_type_limits_name": "WALLCAL_ANY", "hourly_value": heating_setpoint},
-            "WALLCAL_COOLING_SETPOINT": {"schedule_type_limits_name": "WALLCAL_ANY", "hourly_value": cooling_setpoint},
-        },
-        "ElectricEquipment": {
-            "WALLCAL_GAINS": {
-                "zone_or_zonelist_or_space_or_spacelist_name": ZONE,
-                "schedule_name": "WALLCAL_ON",
-                "design_level_calculation_method": "Watts/Area",
-                "watts_per_floor_area": INTERNAL_GAINS_W_M2,
-                "fraction_latent": 0.0,
-                "fraction_radiant": 0.3,
-                "fraction_lost": 0.0,
-            }
-        },
-        "ZoneInfiltration:DesignFlowRate": {
-            "WALLCAL_INFILTRATION": {
-                "zone_or_zonelist_or_space_or_spacelist_name": ZONE,
-                "schedule_name": "WALLCAL_ON",
-                "design_flow_rate_calculation_method": "AirChanges/Hour",
-                "air_changes_per_hour": INFILTRATION_ACH,
-                "constant_term_coefficient": 1.0,
-                "temperature_term_coefficient": 0.0,
-                "velocity_term_coefficient": 0.0,
-                "velocity_squared_term_coefficient": 0.0,
-            }
-        },
-        "ZoneControl:Thermostat": {
-            "WALLCAL_THERMOSTAT": {
-                "zone_or_zonelist_name": ZONE,
-                "control_type_schedule_name": "WALLCAL_CONTROL",
-                "control_1_object_type": "ThermostatSetpoint:DualSetpoint",
-                "control_1_name": "WALLCAL_SETPOINTS",
-            }
-        },
-        "ThermostatSetpoint:DualSetpoint": {
-            "WALLCAL_SETPOINTS": {
-                "heating_setpoint_temperature_schedule_name": "WALLCAL_HEATING_SETPOINT",
-                "cooling_setpoint_temperature_schedule_name": "WALLCAL_COOLING_SETPOINT",
-            }
-        },
-        "ZoneHVAC:EquipmentConnections": {
-            "ZoneHVAC:EquipmentConnections 1": {
-                "zone_name": ZONE,
-                "zone_conditioning_equipment_list_name": "ZONE Equipment",
-                "zone_air_inlet_node_or_nodelist_name": "ZONE Inlets",
-                "zone_air_node_name": "ZONE Air Node",
-                "zone_return_air_node_or_nodelist_name": "ZONE Return Node",
-            }
-        },
-        "NodeList": {"ZONE Inlets": {"nodes": [{"node_name": "ZONE Ideal Supply"}]}},
-        "ZoneHVAC:EquipmentList": {
-            "ZONE Equipment": {
-                "load_distribution_scheme": "SequentialLoad",
-                "equipment": [
-                    {
-                        "zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem",
-                        "zone_equipment_name": "ZONE Ideal",
-                        "zone_equipment_cooling_sequence": 1,
-                        "zone_equipment_heating_or_no_load_sequence": 1,
-                    }
-                ],
-            }
-        },
-        "ZoneHVAC:IdealLoadsAirSystem": {
-            "ZONE Ideal": {
-                "zone_supply_air_node_name": "ZONE Ideal Supply",
-                "maximum_heating_supply_air_temperature": 50.0,
-                "minimum_cooling_supply_air_temperature": 13.0,
-                "maximum_heating_supply_air_humidity_ratio": 0.0156,
-                "minimum_cooling_supply_air_humidity_ratio": 0.0077,
-                "heating_limit": "NoLimit",
-                "cooling_limit": "NoLimit",
-                "dehumidification_control_type": "None",
-                "humidification_control_type": "None",
-            }
-        },
-    }
+    model = json.loads(REFERENCE_BUILDING_FILE.read_text(encoding="utf-8"))
+    schedules = model["Schedule:Constant"]
+    schedules["WALLCAL_HEATING_SETPOINT"]["hourly_value"] = heating_setpoint
+    schedules["WALLCAL_COOLING_SETPOINT"]["hourly_value"] = cooling_setpoint
+    return model
 
 
 # ============================================================================ a user's model
@@ -298,21 +116,13 @@ def load_model(path: str | Path) -> dict:
         except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise DataError(f"{path}: not a readable epJSON file ({exc})") from exc
     elif suffix == ".idf":
-        from ..engines.energyplus.runner import energyplus_binary, error_lines
+        from ..eplus import convert_to_epjson
 
         with tempfile.TemporaryDirectory(prefix="wallcal_convert_") as tmp:
-            proc = subprocess.run(
-                [str(energyplus_binary()), "--convert-only", "-d", tmp, str(path.resolve())],
-                capture_output=True,
-                text=True,
-                timeout=300,
-            )
-            out = Path(tmp) / (path.stem + ".epJSON")
-            err = Path(tmp) / "eplusout.err"
-            lines = error_lines(err.read_text(errors="replace")) if err.exists() else []
-            if proc.returncode != 0 or not out.exists() or lines:
-                why = lines[0] if lines else (proc.stderr or proc.stdout or "").strip().splitlines()[-1:]
-                raise DataError(f"{path}: EnergyPlus could not convert the IDF file to epJSON: {why}")
+            try:
+                out = convert_to_epjson(path, Path(tmp))
+            except EngineError as exc:
+                raise DataError(f"{path}: EnergyPlus could not convert the IDF file to epJSON: {exc}") from exc
             model = json.loads(out.read_text(encoding="utf-8"))
     else:
         raise DataError(f"--building {path}: expected an .epJSON or .idf file (EnergyPlus 25.2)")

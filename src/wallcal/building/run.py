@@ -1,8 +1,9 @@
 """One EnergyPlus run of a building: a top-level function of one picklable task (for the executor).
 
 :func:`run_building` writes the task's epJSON model into its own scratch directory, runs EnergyPlus on the
-task's weather file and returns the figures: heating and cooling delivered by the ideal loads over the run
-period [kWh] (the timestep rates summed over the conditioned zones, times the timestep), their peaks [W]
+task's weather file (through :mod:`wallcal.eplus`) and returns the figures: heating and cooling delivered
+by the ideal loads over the run period [kWh] (the timestep rates summed over the conditioned zones, times the
+timestep), their peaks [W]
 (largest timestep value of that sum), the conditioned floor area [m2] (EnergyPlus' ``Zone Information``
 floor areas times the zone multipliers) and, when asked, the hourly zone mean air temperatures [degC].
 """
@@ -11,7 +12,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
 import tempfile
 from pathlib import Path
 
@@ -43,26 +43,15 @@ def run_building(task: dict) -> dict:
     EngineError
         EnergyPlus failed (its severe lines are shown) or did not finish within the timeout.
     """
-    from ..engines.energyplus.runner import energyplus_binary, error_lines
+    from ..eplus import launch
 
-    exe = energyplus_binary()
     label = task.get("label", "building")
     tmp = Path(tempfile.mkdtemp(prefix="wallcal_building_", dir=task.get("scratch")))
     try:
         (tmp / "in.epJSON").write_text(json.dumps(task["model"]), encoding="utf-8")
-        cmd = [str(exe), "-w", str(task["weather"]), "-d", str(tmp), str(tmp / "in.epJSON")]
-        try:
-            proc = subprocess.run(
-                cmd, cwd=tmp, capture_output=True, text=True, timeout=float(task.get("timeout", 1800))
-            )
-        except subprocess.TimeoutExpired as exc:
-            raise EngineError(f"{label}: EnergyPlus did not finish within {task.get('timeout', 1800):g} s") from exc
-        err = tmp / "eplusout.err"
-        err_text = err.read_text(errors="replace") if err.exists() else ""
-        severe = error_lines(err_text)
-        if proc.returncode != 0 or severe or not (tmp / "eplusout.csv").exists():
-            lines = severe or (proc.stderr or proc.stdout or "").strip().splitlines()[-5:]
-            raise EngineError(f"{label}: EnergyPlus failed (exit code {proc.returncode}): " + " | ".join(lines[:6]))
+        err_text = launch(
+            tmp / "in.epJSON", tmp, weather=Path(task["weather"]), timeout=float(task.get("timeout", 1800)), label=label
+        )
         df = read_eplus_csv(tmp / "eplusout.csv")
         area = _floor_area(tmp / "eplusout.eio", task["zones"])
         out = {

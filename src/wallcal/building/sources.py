@@ -4,13 +4,14 @@
   each with its ``calibrated_wall.toml`` (calibrating several studies at once);
 - a ``wallcal crosscheck`` output: the walls it checked, ``walls/<name>.toml``;
 - a ``wallcal posterior`` output (``chain.npz``): ``samples`` draws, spread evenly over the chain after its
-  burn-in (:func:`wallcal.retrofitting.run.load_samples`), applied to the study's wall;
+  burn-in (:func:`wallcal.analysis.posterior.load_samples`), applied to the study's wall;
 - a ``wallcal retrofit`` output: its variants' walls, ``variant_<k>.toml`` named in ``retrofit.json``.
+
+Each folder is read by the reader beside its writer, which checks its format version (:mod:`wallcal.outputs`).
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,50 +40,30 @@ def from_output(study, directory: str | Path, samples: int) -> list[WallEntry]:
     StudyError
         A folder that is none of these outputs, or whose walls do not parse.
     """
-    from ..study import load_wall
+    from ..calibration.output import is_calibrate_output, read_calibrated_walls
+    from ..crosscheck import CSV, read_crosscheck
 
     d = Path(directory)
     if not d.is_dir():
         raise StudyError([f"--from {d}: no such folder"])
     if (d / "chain.npz").exists():
-        from ..retrofitting.run import load_samples
+        from ..analysis.posterior import load_samples
 
         smp = load_samples(d, study.wall, samples)
         return [WallEntry(f"draw_{k:03d}", w, "draw", f"posterior draw {k} of {d}") for k, w in enumerate(smp.walls, 1)]
-    if (d / "calibrated_wall.toml").exists():
-        return [WallEntry(d.name, load_wall(d / "calibrated_wall.toml"), "optimal", f"calibrated wall of {d}")]
-    if (d / "crosscheck.csv").exists():
-        files = sorted((d / "walls").glob("*.toml"))
-        if not files:
-            raise StudyError(
-                [
-                    f"--from {d}: a crosscheck output without its walls/ folder (written by an older wallcal); "
-                    "give the wall files with --walls"
-                ]
-            )
-        return [WallEntry(f.stem, load_wall(f), "optimal", f"crosscheck wall {f}") for f in files]
-    if (d / "retrofit.json").exists():
-        try:
-            info = json.loads((d / "retrofit.json").read_text())
-            variants = [(int(v["index"]), str(v["name"])) for v in info["variants"]]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise StudyError([f"--from {d}: retrofit.json is not readable ({exc})"]) from exc
-        out = []
-        for k, name in variants:
-            f = d / f"variant_{k}.toml"
-            if not f.exists():
-                raise StudyError(
-                    [
-                        f"--from {d}: {f.name} is missing (a retrofit output written by an older wallcal); run "
-                        "'wallcal retrofit' again"
-                    ]
-                )
-            out.append(WallEntry(name, load_wall(f), "variant", f"retrofit variant {name!r} of {d}"))
-        return out
-    subs = sorted(p for p in d.iterdir() if (p / "calibrated_wall.toml").exists())
-    if subs:
+    if (d / CSV).exists():
         return [
-            WallEntry(p.name, load_wall(p / "calibrated_wall.toml"), "optimal", f"calibrated wall of {p}") for p in subs
+            WallEntry(n, w, "optimal", f"crosscheck wall {d / 'walls' / n}.toml")
+            for n, w in read_crosscheck(d).walls.items()
+        ]
+    if (d / "retrofit.json").exists():
+        from ..retrofitting.run import read_variant_walls
+
+        return [WallEntry(n, w, "variant", f"retrofit variant {n!r} of {d}") for n, w in read_variant_walls(d).items()]
+    if is_calibrate_output(d):
+        return [
+            WallEntry(n, w, "optimal", f"calibrated wall of {d if n == d.name else d / n}")
+            for n, w in read_calibrated_walls(d).items()
         ]
     raise StudyError(
         [

@@ -365,16 +365,18 @@ def building(
                     "timeout": timeout,
                 }
             )
-    from ..cluster import current_executor, executor_from
+    from ..eplus import map_runs
 
-    active = current_executor() if scheduler is None and cache_dir is None else None
-    if active is not None:  # inside a command's executor (wallcal run): its cluster, its --scheduler and store
-        results = active.map(run_building, tasks)
-    else:
-        with executor_from(
-            scheduler, cache_dir=cache_dir, resume=resume, progress=progress, label="EnergyPlus runs (building)"
-        ) as ex:
-            results = ex.map(run_building, tasks)
+    # inside a command's executor (wallcal run): its cluster, its --scheduler and store
+    results = map_runs(
+        run_building,
+        tasks,
+        scheduler=scheduler,
+        cache_dir=cache_dir,
+        resume=resume,
+        progress=progress,
+        label="EnergyPlus runs (building)",
+    )
     figures = results[: len(walls)]
     res = BuildingResult(
         walls=list(walls),

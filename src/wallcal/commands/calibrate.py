@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -178,46 +177,25 @@ def run_crosscheck(args) -> int:
 
 
 def crosscheck_command(args) -> int:
-    from ..comparison import compare_many
+    from ..crosscheck import CSV, WALLS, crosscheck, with_study_probes
     from ..outputs import output_dir
     from ..simulation import manifest_of
     from ..study import load_study, load_wall
 
     study = load_study(args.study)
     engines = [e.strip() for e in args.engines.split(",") if e.strip()]
-    rows = []
-    targets = (
-        study.calibration.targets
-        if study.calibration
-        else [s.name for s in study.sensors if s.quantity == "temperature"]
-    )
-    studies = []
-    for wpath in args.walls:
-        wall = load_wall(wpath)
-        if not wall.probes:
-            wall = wall.replace(probes=study.wall.probes)
-        missing = [
-            s.name for s in study.sensors if s.quantity == "temperature" and s.name not in {p.name for p in wall.probes}
-        ]
-        if missing:
-            from ..errors import StudyError
-
-            raise StudyError([f"{wpath}: the wall has no probe {', '.join(missing)} that the study's sensors need"])
-        studies.append(study.replace(wall=wall))
-    comps = compare_many(studies, engines)
-    for wpath, comp in zip(args.walls, comps, strict=True):
-        for eng in comp.results:
-            met = comp.results[eng].metrics.set_index("signal")
-            rows.append({"wall": Path(wpath).stem, "engine": eng, **{f"rmse_{t}": met.loc[t, "rmse"] for t in targets}})
-    df = pd.DataFrame(rows)
-    print(table(df.set_index(["wall"]), "Optimal cases and cross-check: RMSE per target (Table VIII)"))
+    walls = {}  # by file name; the same name again gets -2, -3, ...
+    for w in args.walls:
+        name, k = Path(w).stem, 2
+        while name in walls:
+            name, k = f"{Path(w).stem}-{k}", k + 1
+        walls[name] = with_study_probes(study, load_wall(w), str(w))
+    res = crosscheck(study, walls, engines)
+    print(table(res.table.set_index(["wall"]), "Optimal cases and cross-check: RMSE per target (Table VIII)"))
     if args.out:
         with output_dir(args.out, manifest=manifest_of(study, "crosscheck")) as tmp:
-            df.to_csv(Path(tmp) / "crosscheck.csv", index=False, float_format="%.6g")
-            (Path(tmp) / "walls").mkdir()  # the walls checked, for 'wallcal building --from'
-            for wpath in args.walls:
-                shutil.copyfile(wpath, Path(tmp) / "walls" / f"{Path(wpath).stem}.toml")
-        print(f"\nwrote {args.out}/crosscheck.csv")
+            res.write_into(Path(tmp))
+        print(f"\nwrote {args.out}/{CSV} and the walls checked in {args.out}/{WALLS}/")
     return 0
 
 

