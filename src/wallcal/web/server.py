@@ -516,11 +516,13 @@ class LiveServer(HTTPServer):
         conn.buf += chunk
         if conn.need is None:
             end = _END_OF_HEAD.search(conn.buf, max(0, old - 3))
+            head = len(conn.buf) if end is None else end.end()
+            if head > MAX_HEAD:
+                line = conn.buf.find(b"\n", 0, MAX_HEAD + 1) >= 0
+                code, what = (431, "the request headers are") if line else (414, "the request line is")
+                self._refuse(conn, code, f"{what} longer than the {MAX_HEAD} bytes the server accepts")
+                return
             if end is None:
-                if len(conn.buf) > MAX_HEAD:
-                    first_line = b"\n" in conn.buf
-                    code, what = (431, "the request headers are") if first_line else (414, "the request line is")
-                    self._refuse(conn, code, f"{what} longer than the {MAX_HEAD} bytes the server accepts")
                 return
             conn.need = end.end() + self._body_length(bytes(conn.buf[: end.end()]))
         if len(conn.buf) >= conn.need:
