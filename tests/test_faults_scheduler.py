@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
 
 import pytest
 
@@ -178,14 +179,8 @@ def test_tls_without_certificates_is_one_line(tmp_path, listener):
     "address, words",
     [
         ("foo", "not an address"),
-        ("tcp://", "not an address"),
-        ("tcp://127.0.0.1", "not an address"),
-        ("http://127.0.0.1:80", "http:// is not supported"),
-        ("tcp://127.0.0.1:0", "port 0 is not in 1..65535"),
-        ("127.0.0.1:70000", "port 70000 is not in 1..65535"),
         ("tcp://no-such-host.invalid:8786", "unknown host"),
-        ("tcp://127.0.0.1:1", "cannot reach the dask scheduler"),
-        ("ucx://127.0.0.1:8786", "cannot connect to the dask scheduler"),
+        ("ucx://127.0.0.1:8786", "cannot connect to the dask scheduler"),  # a Client that fails to start
     ],
 )
 def test_a_garbage_address_is_one_line(tmp_path, address, words):
@@ -193,7 +188,72 @@ def test_a_garbage_address_is_one_line(tmp_path, address, words):
     assert_one_line(proc, elapsed, words)
 
 
+@pytest.mark.parametrize(
+    "address, words",
+    [
+        ("tcp://", "not an address"),
+        ("tcp://127.0.0.1", "not an address"),
+        ("127.0.0.1:8786:1", "not an address"),
+        ("http://127.0.0.1:80", "http:// is not supported"),
+        ("tcp://127.0.0.1:0", "port 0 is not in 1..65535"),
+        ("127.0.0.1:70000", "port 70000 is not in 1..65535"),
+        ("tcp://127.0.0.1:1", "cannot reach the dask scheduler"),
+    ],
+)
+def test_an_address_is_checked_before_any_connection(tmp_path, capsys, address, words):
+    from wallcal.cli import main
+
+    assert main(["compare", str(EXAMPLE), "--scheduler", address]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and len(err[0]) <= 300 and words in err[0], err
+
+
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "soon", "1e9"])
-def test_a_bad_scheduler_timeout_is_one_line(tmp_path, value):
-    proc, elapsed = compare(tmp_path, "tcp://127.0.0.1:1", "--scheduler-timeout", value)
-    assert_one_line(proc, elapsed, "must be a number of seconds in (0, 3600]")
+def test_a_bad_scheduler_timeout_is_one_line(capsys, value):
+    from wallcal.cli import main
+
+    assert main(["compare", str(EXAMPLE), "--scheduler", "tcp://127.0.0.1:1", "--scheduler-timeout", value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "must be a number of seconds in (0, 3600]" in err[0], err
+
+
+def test_the_timeout_comes_from_the_argument_else_the_environment_else_10_s(monkeypatch):
+    from wallcal.cluster import CONNECT_TIMEOUT_S, Executor
+
+    monkeypatch.delenv("WALLCAL_SCHEDULER_TIMEOUT", raising=False)
+    assert CONNECT_TIMEOUT_S == 10.0 and Executor("tcp://h:1").connect_timeout == 10.0
+    monkeypatch.setenv("WALLCAL_SCHEDULER_TIMEOUT", "3.5")
+    assert Executor("tcp://h:1").connect_timeout == 3.5
+    assert Executor("tcp://h:1", connect_timeout=7).connect_timeout == 7.0
+
+
+# ----------------------------------------------------------------------------- a killed worker's scratch directory
+def test_a_killed_workers_scratch_directory_is_removed_by_the_next_run(tmp_path):
+    from wallcal.building.run import clean_stale_scratch, scratch_dir
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")]))
+    code = (
+        "import sys, time\nfrom wallcal.building.run import scratch_dir\n"
+        "d = scratch_dir(sys.argv[1]); (d / 'eplusout.err').write_text('running'); print(d, flush=True)\n"
+        "time.sleep(120)\n"
+    )
+    worker = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        left = Path(worker.stdout.readline().strip())
+        assert left.parent == tmp_path and (left / "eplusout.err").exists()
+        assert clean_stale_scratch(tmp_path) == [] and left.is_dir()  # a live run's directory stays
+    finally:
+        worker.kill()  # SIGKILL: the run's own clean-up never happens
+        worker.wait(10)
+        worker.stdout.close()
+    assert left.is_dir()
+    another_host = tmp_path / f"wallcal_building_{worker.pid}@another-host_x1"
+    unrelated = tmp_path / "wallcal_building_no_pid"
+    mine = scratch_dir(tmp_path)  # this process's own, made now
+    reused = tmp_path / f"wallcal_building_{os.getpid()}@{mine.name.split('@')[1].split('_')[0]}_old"
+    for d in (another_host, unrelated, reused):
+        d.mkdir()
+    os.utime(reused, (time.time() - 3600, time.time() - 3600))  # this pid's, but older than this process
+    new = scratch_dir(tmp_path)
+    assert not left.exists() and not reused.exists()
+    assert new.is_dir() and mine.is_dir() and another_host.is_dir() and unrelated.is_dir()
