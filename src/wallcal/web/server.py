@@ -21,12 +21,17 @@ Only the user's own page may call the API (see docs/live-page.md):
 - the ``Host`` header must name the bound address or ``localhost`` (DNS
   rebinding), an ``Origin`` header must be the page's own, a ``Sec-Fetch-Site``
   header must say ``same-origin``: 403 otherwise;
-- ``POST`` bodies: ``Content-Type: application/json`` only (415), a
-  ``Content-Length`` (411) of at most ``MAX_BODY`` bytes (413), sent within the
+- ``POST`` bodies: ``Content-Type: application/json`` only (415), one
+  ``Content-Length`` (411, 400 for two) of at most ``MAX_BODY`` bytes (413), sent within the
   connection's time limit (408), UTF-8 JSON of finite numbers, nested at most
   ``MAX_DEPTH`` deep, in the shape above, with physically possible values (400);
-- one thread per connection and a socket time-out per connection, so a slow or
-  stalled client never holds up the page.
+- every answer, refusals included (the standard library's own: ``send_error``), carries
+  the security headers, and every refusal is one line of JSON.
+
+Under load (:class:`LiveServer`): one loop reads each request without a thread (a deadline,
+a head limit, at most ``MAX_PENDING`` waiting connections), ``HANDLER_THREADS`` threads answer
+complete ones, and at most ``SIMULATIONS`` simulations run or wait at once (503 with
+``Retry-After`` beyond), so slow, stalled or numerous clients never hold up the page.
 """
 
 from __future__ import annotations
