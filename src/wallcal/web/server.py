@@ -37,6 +37,7 @@ complete ones, and at most ``SIMULATIONS`` simulations run or wait at once (503 
 from __future__ import annotations
 
 import base64
+import errno
 import hashlib
 import hmac
 import io
@@ -486,12 +487,14 @@ class LiveServer(HTTPServer):
                 sock, addr = self.socket.accept()
             except BlockingIOError:
                 return
-            except OSError:  # out of file descriptors: make room, the next round accepts
-                if self._pending:
-                    self._close(next(iter(self._pending.values())))
-                else:
-                    time.sleep(0.05)
-                return
+            except OSError as exc:
+                if exc.errno in (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM):
+                    if self._pending:  # out of file descriptors: make room, the next round accepts
+                        self._close(next(iter(self._pending.values())))
+                    else:
+                        time.sleep(0.05)
+                    return
+                continue  # a connection reset before it was accepted
             while len(self._pending) >= MAX_PENDING:
                 self._close(next(iter(self._pending.values())))
             sock.setblocking(False)
@@ -627,6 +630,7 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
         def setup(self):
             self.timeout = timeout  # socket time-out of this connection (read by StreamRequestHandler.setup)
             super().setup()
+            self.rfile.close()  # not the socket: the request was read by the server's loop
             self.rfile = io.BytesIO(self.server.take_prefix(self.request))  # the request, read by the server's loop
             self._body_read = False
 
