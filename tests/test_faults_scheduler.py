@@ -4,12 +4,15 @@ with no traceback (not even from ``Client.__del__`` at exit).
 The command is run as a subprocess (``wallcal compare STUDY --scheduler ADDRESS``: it connects to the scheduler
 before anything else, and a ``__del__`` traceback would only show at the interpreter's exit) against loopback
 listeners started here: a silent one, an HTTP server, one that sends random bytes, one that announces a huge
-message, one that closes at once.
+message, one that closes at once; ``tls://`` without certificates, with certificates to a listener that speaks no
+TLS, with a missing certificate file, and a real TLS scheduler that must pass. Last, a killed worker's scratch
+directory is removed by the next building run.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import socket
 import struct
 import subprocess
@@ -257,3 +260,68 @@ def test_a_killed_workers_scratch_directory_is_removed_by_the_next_run(tmp_path)
     new = scratch_dir(tmp_path)
     assert not left.exists() and not reused.exists()
     assert new.is_dir() and mine.is_dir() and another_host.is_dir() and unrelated.is_dir()
+
+
+def tls_env(tmp_path) -> dict:
+    """A self-signed certificate as the client's TLS configuration (dask's environment variables)."""
+    if shutil.which("openssl") is None:
+        pytest.skip("needs the openssl command to make a certificate")
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    subprocess.run(
+        ["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1"]
+        + ["-keyout", str(key), "-out", str(cert)],
+        check=True,
+        capture_output=True,
+        timeout=60,
+    )
+    return {
+        "DASK_DISTRIBUTED__COMM__TLS__CA_FILE": str(cert),
+        "DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT": str(cert),
+        "DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY": str(key),
+    }
+
+
+@pytest.mark.parametrize(
+    "behaviour, words", [(random_bytes, "the TLS handshake failed"), (silent, "no dask handshake within 2 s")]
+)
+def test_tls_with_certificates_to_a_listener_that_speaks_no_tls_is_one_line(tmp_path, listener, behaviour, words):
+    env = tls_env(tmp_path) | {"WALLCAL_SCHEDULER_TIMEOUT": "2"}
+    address = listener(behaviour).replace("tcp://", "tls://")
+    proc, elapsed = compare(tmp_path, address, env_extra=env)
+    assert_one_line(proc, elapsed, address, words)
+
+
+def test_tls_with_a_missing_certificate_file_is_one_line(tmp_path, listener):
+    env = tls_env(tmp_path)
+    env["DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT"] = str(tmp_path / "missing.pem")
+    address = listener(silent).replace("tcp://", "tls://")
+    proc, elapsed = compare(tmp_path, address, env_extra=env)
+    assert_one_line(proc, elapsed, address, "the dask TLS configuration cannot be used")
+
+
+def test_a_real_tls_scheduler_passes_the_probe(tmp_path):
+    """The probe's TLS handshake is the one dask makes: a scheduler with the same certificates is accepted."""
+    import dask
+    import distributed
+    from distributed.security import Security
+
+    from wallcal.cluster import Executor
+
+    env = tls_env(tmp_path)
+    cert, key = env["DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT"], env["DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY"]
+    tls = "distributed.comm.tls."
+    config = {tls + "ca-file": cert, tls + "client.cert": cert, tls + "client.key": key}
+    for role in ("scheduler", "worker"):
+        config |= {f"{tls}{role}.cert": cert, f"{tls}{role}.key": key}
+    with dask.config.set(config):
+        with distributed.LocalCluster(
+            n_workers=1,
+            processes=False,
+            protocol="tls://",
+            host="127.0.0.1",
+            security=Security(),
+            dashboard_address=None,
+        ) as lc:
+            assert lc.scheduler_address.startswith("tls://")
+            with Executor(lc.scheduler_address, progress=False, connect_timeout=10) as ex:
+                assert ex.map(abs, [-3, 4]) == [3, 4]
