@@ -115,7 +115,7 @@ def test_fifty_concurrent_simulations_are_all_answered_within_10_s(live, monkeyp
         if status == 503:
             assert headers["retry-after"].isdigit() and "busy" in body["error"]
     # the kernel completed every handshake at once (the backlog held them), none waited for a SYN to be resent
-    assert max(r[3] for r in results) < 0.5, sorted(round(r[3], 2) for r in results)
+    assert max(r[3] for r in results) < 0.9, sorted(round(r[3], 2) for r in results)
     assert max(r[4] for r in results) < 10.0, sorted(round(r[4], 2) for r in results)
     assert elapsed < 10.0
 
