@@ -5,9 +5,12 @@
 - ``scheduler=None`` and no ``WALLCAL_SCHEDULER`` in the environment: a ``LocalCluster`` of worker
   *processes* with one thread each, as many as the machine has cores (or ``workers``), started on the
   first :meth:`Executor.map` that has something to run and closed when the ``with`` block ends;
-- an address (``tcp://host:8786``, ``host:8786``; or ``WALLCAL_SCHEDULER``): an existing cluster
-  (``dask scheduler`` + ``dask worker``, dask-jobqueue, ...). An address that does not answer within
-  :data:`CONNECT_TIMEOUT_S` is a :class:`ClusterError` naming it.
+- an address (``tcp://host:8786``, ``tls://host:8786``, ``host:8786``; or ``WALLCAL_SCHEDULER``): an existing
+  cluster (``dask scheduler`` + ``dask worker``, dask-jobqueue, ...). Before the ``distributed.Client`` is made,
+  :func:`probe_scheduler` checks the address: its form, TLS certificates for ``tls://``, then a connection that
+  must carry a dask handshake within ``connect_timeout`` seconds (:data:`CONNECT_TIMEOUT_S`, or
+  ``WALLCAL_SCHEDULER_TIMEOUT``). Anything else (nothing listening, a silent listener, an HTTP server, random
+  bytes) is a one-line :class:`ClusterError` naming the address, never a hang or a traceback from distributed.
 
 Results come back in the order of the tasks; a progress line on standard error counts them as they
 complete. A task whose worker dies is run again elsewhere (the scheduler's ``allowed-failures``), a
@@ -30,9 +33,12 @@ from __future__ import annotations
 import contextvars
 import hashlib
 import logging
+import math
 import os
 import pickle
 import re
+import socket
+import struct
 import sys
 import tempfile
 import time
@@ -44,8 +50,18 @@ from .errors import WallcalError, require
 
 #: Environment variable naming the scheduler address used when none is given.
 SCHEDULER_ENV = "WALLCAL_SCHEDULER"
-#: Seconds to wait for a scheduler to answer before giving up with a :class:`ClusterError`.
-CONNECT_TIMEOUT_S = 6.0
+#: Seconds a scheduler has to accept the connection and send its dask handshake (then again for the Client to
+#: connect) before a :class:`ClusterError`; ``WALLCAL_SCHEDULER_TIMEOUT`` or ``connect_timeout=`` change it.
+CONNECT_TIMEOUT_S = 10.0
+#: Environment variable with the connect-and-handshake time-out in seconds.
+TIMEOUT_ENV = "WALLCAL_SCHEDULER_TIMEOUT"
+#: Largest first message accepted from a scheduler during the probe (a dask handshake is about 100 bytes).
+_MAX_HANDSHAKE = 1 << 16
+#: dask transports other than TCP, not probed.
+_UNPROBED = ("inproc", "ucx", "ws", "wss")
+_ADDRESS = re.compile(
+    r"(?:(?P<scheme>[A-Za-z][A-Za-z0-9+.-]*)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})/?"
+)
 #: ``scheduler="local"`` asks for a local cluster even when ``WALLCAL_SCHEDULER`` is set.
 LOCAL = "local"
 
@@ -102,6 +118,152 @@ def in_dask_worker() -> bool:
     return True
 
 
+def connect_timeout_from(value=None) -> float:
+    """The connect-and-handshake time-out [s]: ``value``, else ``WALLCAL_SCHEDULER_TIMEOUT``, else
+    :data:`CONNECT_TIMEOUT_S`; a :class:`ClusterError` unless a number of seconds in (0, 3600]."""
+    where = "the scheduler time-out"
+    if value is None:
+        value = os.environ.get(TIMEOUT_ENV, "").strip()
+        if not value:
+            return CONNECT_TIMEOUT_S
+        where = TIMEOUT_ENV
+    try:
+        t = float(value)
+    except (TypeError, ValueError):
+        t = math.nan
+    if not (math.isfinite(t) and 0 < t <= 3600):
+        raise ClusterError(f"{where}: must be a number of seconds in (0, 3600], got {str(value)[:40]!r}")
+    return t
+
+
+def split_address(address: str) -> tuple[str, str, int]:
+    """``(scheme, host, port)`` of a scheduler address (``tcp://`` by default), or a :class:`ClusterError`."""
+    fix = f"fix --scheduler / {SCHEDULER_ENV}"
+    m = _ADDRESS.fullmatch(str(address).strip())
+    if m is None:
+        raise ClusterError(
+            f"scheduler address {str(address)[:80]!r}: not an address (expected tcp://HOST:PORT, tls://HOST:PORT "
+            f"or HOST:PORT); {fix}"
+        )
+    scheme, port = (m["scheme"] or "tcp").lower(), int(m["port"])
+    if scheme not in ("tcp", "tls"):
+        raise ClusterError(
+            f"scheduler address {address[:80]!r}: {scheme}:// is not supported (tcp:// or tls://); {fix}"
+        )
+    if not 1 <= port <= 65535:
+        raise ClusterError(f"scheduler address {address[:80]!r}: port {port} is not in 1..65535; {fix}")
+    return scheme, m["host"].strip("[]"), port
+
+
+def _tls_context(address: str):
+    """The client's TLS context from the dask configuration (``distributed.comm.tls``), or a ClusterError."""
+    from distributed.security import Security
+
+    try:
+        ctx = Security().get_connection_args("client")["ssl_context"]
+    except Exception as exc:  # missing or unreadable certificate files, bad configuration
+        raise ClusterError(
+            f"{address}: the dask TLS configuration cannot be used ({type(exc).__name__}: {str(exc)[:120]})"
+        ) from None
+    if ctx is None:
+        raise ClusterError(
+            f"{address}: tls:// needs the client's certificates in the dask configuration "
+            "(distributed.comm.tls.ca-file, .client.cert, .client.key); none is set (docs/cluster.md)"
+        )
+    return ctx
+
+
+class _NotDask(Exception):
+    pass
+
+
+def probe_scheduler(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Check that a dask scheduler answers at ``address`` before a ``distributed.Client`` is made.
+
+    Connects (with TLS for ``tls://``) and reads the handshake a dask server sends first on every new
+    connection (an 8-byte length, a frame count, a msgpack dict with ``pickle-protocol``), all within
+    ``timeout`` seconds and at most 64 KiB (``inproc://``, ``ucx://``, ``ws://`` and ``wss://`` addresses are
+    left to the Client's own time-out). Raises a one-line :class:`ClusterError` when nothing listens,
+    nothing answers in time (a silent listener, an HTTP server waiting for a request) or the first bytes are
+    not a dask handshake (random bytes, another protocol); distributed itself would hang or try to allocate
+    what a garbage length announces.
+    """
+    import ssl
+
+    if "://" in address and address.partition("://")[0].lower() in _UNPROBED:
+        return  # dask's other transports: the Client's own time-out applies
+    scheme, host, port = split_address(address)
+    ctx = _tls_context(address) if scheme == "tls" else None
+    fix = f"fix --scheduler / {SCHEDULER_ENV}"
+    deadline = time.monotonic() + timeout
+    stage = "connect"
+    sock = None
+
+    def recv_exact(n: int) -> bytes:
+        buf = bytearray()
+        while len(buf) < n:
+            sock.settimeout(max(1e-3, deadline - time.monotonic()))
+            chunk = sock.recv(n - len(buf))
+            if not chunk:
+                raise _NotDask("closed the connection")
+            buf += chunk
+        return bytes(buf)
+
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+        stage = "handshake"
+        if ctx is not None:
+            sock.settimeout(max(1e-3, deadline - time.monotonic()))
+            sock = ctx.wrap_socket(sock, server_hostname=host if ctx.check_hostname else None)
+        (total,) = struct.unpack("<Q", recv_exact(8))
+        if not 16 <= total <= _MAX_HANDSHAKE:
+            raise _NotDask("sent bytes that are not a dask handshake")
+        body = recv_exact(total)
+        (frames,) = struct.unpack_from("<Q", body)
+        if not 1 <= frames <= 16 or 8 + 8 * frames > total or b"pickle-protocol" not in body:
+            raise _NotDask("sent bytes that are not a dask handshake")
+    except socket.gaierror as exc:
+        raise ClusterError(
+            f"cannot reach the dask scheduler at {address}: unknown host {host!r} ({exc.strerror}); {fix}"
+        ) from None
+    except TimeoutError:
+        if stage == "connect":
+            raise ClusterError(
+                f"cannot reach the dask scheduler at {address} within {timeout:g} s (no answer); start one "
+                f"(`dask scheduler`), {fix} or raise {TIMEOUT_ENV}"
+            ) from None
+        raise ClusterError(
+            f"{address} accepted the connection but sent no dask handshake within {timeout:g} s: not a dask "
+            f"scheduler (an HTTP server? another service?) or a very busy one; {fix} or raise {TIMEOUT_ENV}"
+        ) from None
+    except ssl.SSLError as exc:
+        raise ClusterError(
+            f"{address}: the TLS handshake failed ({exc.reason or type(exc).__name__}): not a dask scheduler with "
+            f"TLS, or certificates it does not accept; {fix}"
+        ) from None
+    except _NotDask as exc:
+        raise ClusterError(f"{address} {exc}: not a dask scheduler; {fix}") from None
+    except OSError as exc:
+        what = exc.strerror or type(exc).__name__
+        if stage == "connect":
+            raise ClusterError(
+                f"cannot reach the dask scheduler at {address} ({what}); start one (`dask scheduler`) or {fix}"
+            ) from None
+        raise ClusterError(f"{address} broke the connection ({what}) without a dask handshake; {fix}") from None
+    finally:
+        if sock is not None:
+            sock.close()
+
+
+def _discard(client) -> None:
+    """Make a Client whose constructor failed inert, so that its ``__del__`` prints no traceback at exit."""
+    client.status = "closed"
+    try:
+        client._loop_runner.stop()
+    except Exception:
+        pass
+
+
 class Executor:
     """Runs ``fn(task)`` for many tasks on a dask.distributed cluster (module docstring).
 
@@ -119,6 +281,9 @@ class Executor:
         Print a progress line on standard error as tasks complete.
     label : str
         What the tasks are, for the progress line (``"EnergyPlus runs"``).
+    connect_timeout : float or None
+        Seconds a scheduler address has to answer with a dask handshake [s] (default
+        ``WALLCAL_SCHEDULER_TIMEOUT``, else :data:`CONNECT_TIMEOUT_S`).
     """
 
     def __init__(
@@ -130,6 +295,7 @@ class Executor:
         resume: bool = False,
         progress: bool = True,
         label: str = "runs",
+        connect_timeout: float | None = None,
     ):
         address = scheduler if scheduler is not None else os.environ.get(SCHEDULER_ENV, "").strip() or None
         self.address = None if address in (None, "", LOCAL) else str(address)
@@ -140,6 +306,7 @@ class Executor:
         self.resume = bool(resume)
         self.progress = bool(progress)
         self.label = label
+        self.connect_timeout = connect_timeout_from(connect_timeout)
         self._client = None
         self._cluster = None
         self._token = None
@@ -188,15 +355,18 @@ class Executor:
             return self._client
         distributed = require("distributed", "cluster")
         if self.address is not None:
+            t = self.connect_timeout
+            probe_scheduler(self.address, t)
+            client = distributed.Client.__new__(distributed.Client)
             try:
-                self._client = distributed.Client(
-                    self.address, timeout=CONNECT_TIMEOUT_S, set_as_default=False, asynchronous=False
-                )
-            except (OSError, TimeoutError, ValueError) as exc:
+                client.__init__(self.address, timeout=t, set_as_default=False, asynchronous=False)
+            except Exception as exc:
+                _discard(client)
                 raise ClusterError(
-                    f"cannot reach the dask scheduler at {self.address} within {CONNECT_TIMEOUT_S:g} s "
-                    f"({type(exc).__name__}); start one (`dask scheduler`) or fix --scheduler / {SCHEDULER_ENV}"
+                    f"cannot connect to the dask scheduler at {self.address} within {t:g} s "
+                    f"({type(exc).__name__}: {str(exc)[:100]}); fix --scheduler / {SCHEDULER_ENV}"
                 ) from None
+            self._client = client
             return self._client
         self._cluster = distributed.LocalCluster(
             n_workers=self.n_local_workers(),
@@ -387,6 +557,7 @@ __all__ = [
     "CONNECT_TIMEOUT_S",
     "LOCAL",
     "SCHEDULER_ENV",
+    "TIMEOUT_ENV",
     "ClusterError",
     "Executor",
     "Progress",
@@ -394,7 +565,10 @@ __all__ = [
     "call_task",
     "current_executor",
     "executor_from",
+    "connect_timeout_from",
     "in_dask_worker",
+    "probe_scheduler",
     "safe_key",
+    "split_address",
     "task_key",
 ]

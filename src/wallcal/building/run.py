@@ -6,19 +6,81 @@ by the ideal loads over the run period [kWh] (the timestep rates summed over the
 timestep), their peaks [W]
 (largest timestep value of that sum), the conditioned floor area [m2] (EnergyPlus' ``Zone Information``
 floor areas times the zone multipliers) and, when asked, the hourly zone mean air temperatures [degC].
+
+A run's scratch directory is removed when it ends; one left by a killed worker is removed by the next run on
+that host (:func:`clean_stale_scratch`).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import re
 import shutil
+import socket
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..errors import EngineError
+
+SCRATCH_PREFIX = "wallcal_building_"
+_SCRATCH = re.compile(SCRATCH_PREFIX + r"(?P<pid>[0-9]+)@(?P<host>[A-Za-z0-9.-]+)_")
+_STARTED = time.time()  # this process made no scratch directory before
+
+
+def _host() -> str:
+    return re.sub(r"[^A-Za-z0-9.-]+", "-", socket.gethostname())[:64] or "host"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def clean_stale_scratch(parent: str | os.PathLike | None = None) -> list[Path]:
+    """Remove the scratch directories of runs whose process died (a killed worker cannot clean up).
+
+    A scratch directory is named ``wallcal_building_<pid>@<host>_<random>``; one of this host whose process no
+    longer exists (or has this process's id but is older than this process: the id was reused) is removed.
+    Directories of other hosts (a scratch folder shared by several machines) and of live processes are left
+    alone. Returns the directories removed.
+    """
+    parent = Path(parent) if parent is not None else Path(tempfile.gettempdir())
+    host, me, removed = _host(), os.getpid(), []
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _SCRATCH.match(entry.name)
+        if m is None or m["host"] != host:
+            continue
+        pid = int(m["pid"])
+        try:
+            if not entry.is_dir(follow_symlinks=False):
+                continue
+            stale = not _alive(pid) if pid != me else entry.stat(follow_symlinks=False).st_mtime < _STARTED - 1.0
+        except OSError:
+            continue
+        if stale:
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed.append(Path(entry.path))
+    return removed
+
+
+def scratch_dir(parent: str | os.PathLike | None = None) -> Path:
+    """A new scratch directory for one run (named after this process and host), after removing stale ones."""
+    clean_stale_scratch(parent)
+    return Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}@{_host()}_", dir=parent))
 
 
 def run_building(task: dict) -> dict:
@@ -46,7 +108,7 @@ def run_building(task: dict) -> dict:
     from ..eplus import launch
 
     label = task.get("label", "building")
-    tmp = Path(tempfile.mkdtemp(prefix="wallcal_building_", dir=task.get("scratch")))
+    tmp = scratch_dir(task.get("scratch"))
     try:
         (tmp / "in.epJSON").write_text(json.dumps(task["model"]), encoding="utf-8")
         err_text = launch(

@@ -14,6 +14,12 @@ SCHEDULER_HELP = (
 
 def add_scheduler(p) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
+    p.add_argument(
+        "--scheduler-timeout",
+        metavar="SECONDS",
+        help="seconds the --scheduler address has to answer with a dask handshake (default: "
+        "WALLCAL_SCHEDULER_TIMEOUT, else 10)",
+    )
 
 
 def add_cluster_options(p) -> None:
@@ -44,7 +50,12 @@ def executor_for(args, out, *, label: str = "EnergyPlus runs", progress: bool = 
         raise StudyError(["--resume needs --out: the finished runs are stored next to it"])
     cache = runs_cache(out) if out else None
     with executor_from(
-        getattr(args, "scheduler", None), cache_dir=cache, resume=resume, progress=progress, label=label
+        getattr(args, "scheduler", None),
+        cache_dir=cache,
+        resume=resume,
+        progress=progress,
+        label=label,
+        connect_timeout=getattr(args, "scheduler_timeout", None),
     ) as ex:
         yield ex
     if cache is not None:

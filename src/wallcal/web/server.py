@@ -21,19 +21,26 @@ Only the user's own page may call the API (see docs/live-page.md):
 - the ``Host`` header must name the bound address or ``localhost`` (DNS
   rebinding), an ``Origin`` header must be the page's own, a ``Sec-Fetch-Site``
   header must say ``same-origin``: 403 otherwise;
-- ``POST`` bodies: ``Content-Type: application/json`` only (415), a
-  ``Content-Length`` (411) of at most ``MAX_BODY`` bytes (413), sent within the
+- ``POST`` bodies: ``Content-Type: application/json`` only (415), one
+  ``Content-Length`` (411, 400 for two) of at most ``MAX_BODY`` bytes (413), sent within the
   connection's time limit (408), UTF-8 JSON of finite numbers, nested at most
   ``MAX_DEPTH`` deep, in the shape above, with physically possible values (400);
-- one thread per connection and a socket time-out per connection, so a slow or
-  stalled client never holds up the page.
+- every answer, refusals included (the standard library's own: ``send_error``), carries
+  the security headers, and every refusal is one line of JSON.
+
+Under load (:class:`LiveServer`): one loop reads each request without a thread (a deadline,
+a head limit, at most ``MAX_PENDING`` waiting connections), ``HANDLER_THREADS`` threads answer
+complete ones, and at most ``SIMULATIONS`` simulations run or wait at once (503 with
+``Retry-After`` beyond), so slow, stalled or numerous clients never hold up the page.
 """
 
 from __future__ import annotations
 
 import base64
+import errno
 import hashlib
 import hmac
+import io
 import ipaddress
 import json
 import math
@@ -43,7 +50,7 @@ import socket
 import sys
 import threading
 import time
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler, HTTPServer
 from pathlib import Path, PurePosixPath
 from urllib.parse import urlsplit
 
@@ -70,6 +77,8 @@ MAX_DEPTH = 8  # JSON nesting; the page's bodies are 3 deep
 TIMEOUT = 10.0  # seconds a connection may take to send its request
 TOKEN_HEADER = "X-Wallcal-Token"
 SAVE_STEM = "manual_wall"
+#: Names Windows reserves for devices, whatever the extension and case (``CON.toml``, ``nul.backup.toml``).
+WINDOWS_RESERVED = frozenset(["CON", "PRN", "AUX", "NUL"] + [f"{d}{i}" for d in ("COM", "LPT") for i in range(10)])
 
 
 def _clean(values) -> list:
@@ -105,6 +114,11 @@ def _safe_stem(name) -> str:
     if stem.lower().endswith(".toml"):
         stem = stem[:-5]
     stem = re.sub(r"[^A-Za-z0-9._-]+", "_", stem).strip("._-")[:64]
+    if stem.split(".")[0].upper() in WINDOWS_RESERVED:
+        raise WallcalError(
+            f"file: {stem[:40]!r} is a device name on Windows (CON, PRN, AUX, NUL, COM0-9, LPT0-9, with any "
+            "extension), not a file name; choose another"
+        )
     return stem or SAVE_STEM
 
 
@@ -127,6 +141,7 @@ class ManualCalibration:
         self.prepared = wallcal.prepare(self.study, needs=("batches",), purpose="the live page")
         self.base = wallcal.simulate(self.study, prepared=self.prepared)
         self.lock = threading.Lock()
+        self.slots = threading.BoundedSemaphore(SIMULATIONS)  # simulations running or waiting for the lock
         self.params = []
         if self.study.calibration:  # validated by load_study
             self.params = [
@@ -220,9 +235,18 @@ class ManualCalibration:
 
     def simulate(self, body: dict) -> dict:
         wall = self.wall_from(body)
-        t = time.perf_counter()
-        with self.lock:
-            res = wallcal.simulate(self.study, prepared=self.prepared, wall=wall)
+        if not self.slots.acquire(timeout=SIMULATION_WAIT):
+            raise _Refused(
+                503,
+                f"busy: {SIMULATIONS} simulations are running or waiting; retry in {RETRY_AFTER} s",
+                {"Retry-After": str(RETRY_AFTER)},
+            )
+        try:
+            t = time.perf_counter()
+            with self.lock:
+                res = wallcal.simulate(self.study, prepared=self.prepared, wall=wall)
+        finally:
+            self.slots.release()
         return self._payload(res, (time.perf_counter() - t) * 1000, wall)
 
     def save(self, body: dict) -> dict:
@@ -254,9 +278,10 @@ class ManualCalibration:
 class _Refused(Exception):
     """A request answered with a 4xx status and a one-line message."""
 
-    def __init__(self, status: int, message: str):
+    def __init__(self, status: int, message: str, headers: dict | None = None):
         super().__init__(message)
         self.status = status
+        self.headers = headers
 
 
 def _depth(text: str) -> int:
@@ -316,23 +341,90 @@ def _page_csp(page: bytes) -> str:
     )
 
 
-class LiveServer(ThreadingHTTPServer):
-    """The threading HTTP server of ``wallcal serve``: one daemon thread per connection.
+#: Pending connections (still sending their request) kept open at most; a new connection beyond this closes
+#: the oldest pending one. A page a few browser tabs use opens a handful at a time.
+MAX_PENDING = 256
+#: Threads answering complete requests (the only threads the server starts besides its own loop).
+HANDLER_THREADS = 16
+#: Complete requests waiting for a thread beyond which a new one is answered 503.
+MAX_QUEUED = 64
+#: Simulations running or waiting for the engine at once; one more waits ``SIMULATION_WAIT`` s, then gets 503.
+SIMULATIONS = 8
+SIMULATION_WAIT = 2.0  # s
+RETRY_AFTER = 1  # s, in the Retry-After header of a 503
+MAX_HEAD = 16 * 1024  # bytes: request line and headers (the page's are under 1 KiB)
+BACKLOG = 128  # connections the kernel queues before the server accepts them
+_END_OF_HEAD = re.compile(rb"\r?\n\r?\n")
+_CONTENT_LENGTH = re.compile(rb"^content-length[ \t]*:[ \t]*([^\r\n]*?)[ \t]*\r?$", re.I | re.M)
+_TRANSFER_ENCODING = re.compile(rb"^transfer-encoding[ \t]*:", re.I | re.M)
+
+
+def answer_bytes(code: int, body: bytes, ctype: str, extra: dict | None = None, head_only: bool = False) -> bytes:
+    """A complete HTTP/1.0 answer with the page's security headers (every answer of the server has them)."""
+    from http import HTTPStatus
+
+    try:
+        reason = HTTPStatus(code).phrase
+    except ValueError:
+        reason = ""
+    headers = {
+        "Server": "wallcal",
+        "Content-Type": ctype,
+        "Content-Length": str(len(body)),
+        "Cache-Control": "no-store",
+        "X-Content-Type-Options": "nosniff",
+        "Referrer-Policy": "no-referrer",
+        "X-Frame-Options": "DENY",
+        "Connection": "close",
+        **(extra or {}),
+    }
+    head = f"HTTP/1.0 {code} {reason}\r\n" + "".join(f"{k}: {v}\r\n" for k, v in headers.items()) + "\r\n"
+    return head.encode("latin-1") + (b"" if head_only else body)
+
+
+def error_bytes(code: int, message: str, extra: dict | None = None) -> bytes:
+    """A refusal: one line of JSON ``{"error": message}``."""
+    return answer_bytes(code, json.dumps({"error": message}).encode(), "application/json", extra)
+
+
+class _Conn:
+    """A connection the server's loop reads until its request is complete (no thread meanwhile)."""
+
+    __slots__ = ("sock", "addr", "buf", "deadline", "need", "draining")
+
+    def __init__(self, sock, addr, deadline: float):
+        self.sock, self.addr, self.buf, self.deadline = sock, addr, bytearray(), deadline
+        self.need = None  # bytes of head + body once the head is complete
+        self.draining = False  # answered by the loop: input is read and dropped until EOF or the deadline
+
+
+class LiveServer(HTTPServer):
+    """The HTTP server of ``wallcal serve``.
+
+    One loop (``serve_forever``'s thread) accepts connections and reads each request, head and body,
+    without a thread: a connection must send its whole request within ``timeout`` seconds (408
+    otherwise), its head within ``MAX_HEAD`` bytes (414, 431); at most ``MAX_PENDING`` connections
+    wait for their request (a new one closes the oldest). Complete requests go to a pool of
+    ``HANDLER_THREADS`` threads (``MAX_QUEUED`` waiting at most: 503 beyond). So a thousand clients
+    trickling bytes hold no thread and cannot keep the page from being served.
 
     Attributes: ``app`` (the ManualCalibration), ``token`` (this start's secret), ``url``
     (the page's address with the token), ``allowed_hosts`` (host names accepted in the
     ``Host`` header; None: any, for a wildcard address with ``allow_remote``).
     """
 
-    daemon_threads = True
-    block_on_close = False
+    request_queue_size = BACKLOG
 
-    def __init__(self, address, handler, app, token: str, allow_any_host: bool = False):
+    def __init__(self, address, handler, app, token: str, allow_any_host: bool = False, timeout: float = TIMEOUT):
+        from collections import OrderedDict
+        from concurrent.futures import ThreadPoolExecutor
+
         host = address[0]
         self.address_family = socket.AF_INET6 if ":" in host else socket.AF_INET
         super().__init__(address, handler)
         self.app = app
         self.token = token
+        self.request_timeout = float(timeout)
         port = self.server_address[1]
         names = {"localhost", host.lower(), f"[{host.lower()}]" if ":" in host else host.lower()}
         if host.lower() == "localhost":
@@ -340,6 +432,185 @@ class LiveServer(ThreadingHTTPServer):
         self.allowed_hosts = None if allow_any_host else names
         shown = {"0.0.0.0": "127.0.0.1", "::": "[::1]", "": "127.0.0.1"}.get(host, f"[{host}]" if ":" in host else host)
         self.url = f"http://{shown}:{port}/?token={token}"
+        self._pending: OrderedDict[int, _Conn] = OrderedDict()  # by fd, oldest first
+        self._pool = ThreadPoolExecutor(HANDLER_THREADS, thread_name_prefix="wallcal-serve")
+        self._queued = 0  # requests given to the pool and not finished
+        self._queued_lock = threading.Lock()
+        self._prefix: dict[int, bytes] = {}  # request bytes read by the loop, by the socket's id
+        self._stop = threading.Event()
+        self._stopped = threading.Event()
+        self._stopped.set()
+
+    # ------------------------------------------------------------------ the loop
+    def serve_forever(self, poll_interval: float = 0.2) -> None:
+        import selectors
+
+        self._stop.clear()
+        self._stopped.clear()
+        sel = selectors.DefaultSelector()
+        self._sel = sel
+        self.socket.setblocking(False)
+        sel.register(self.socket, selectors.EVENT_READ, None)
+        try:
+            while not self._stop.is_set():
+                for key, _ in sel.select(poll_interval):
+                    if key.data is None:
+                        self._accept()
+                    else:
+                        self._receive(key.data)
+                now = time.monotonic()
+                while self._pending:
+                    conn = next(iter(self._pending.values()))
+                    if conn.deadline > now:
+                        break
+                    self._expire(conn)
+        finally:
+            for conn in list(self._pending.values()):
+                self._close(conn)
+            sel.close()
+            self._stopped.set()
+
+    def shutdown(self) -> None:
+        """Stop ``serve_forever`` and wait until it has returned (from another thread)."""
+        self._stop.set()
+        self._stopped.wait()
+
+    def server_close(self) -> None:
+        super().server_close()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+
+    def _accept(self) -> None:
+        import selectors
+
+        for _ in range(64):  # then let the loop serve the others
+            try:
+                sock, addr = self.socket.accept()
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                if exc.errno in (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM):
+                    if self._pending:  # out of file descriptors: make room, the next round accepts
+                        self._close(next(iter(self._pending.values())))
+                    else:
+                        time.sleep(0.05)
+                    return
+                continue  # a connection reset before it was accepted
+            while len(self._pending) >= MAX_PENDING:
+                self._close(next(iter(self._pending.values())))
+            sock.setblocking(False)
+            conn = _Conn(sock, addr, time.monotonic() + self.request_timeout)
+            self._pending[sock.fileno()] = conn
+            self._sel.register(sock, selectors.EVENT_READ, conn)
+
+    def _receive(self, conn: _Conn) -> None:
+        try:
+            chunk = conn.sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            self._close(conn)
+            return
+        if conn.draining:
+            if not chunk:
+                self._close(conn)
+            return
+        if not chunk:  # the client stopped sending: answer what came (a short body is a 400)
+            if conn.buf:
+                self._dispatch(conn)
+            else:
+                self._close(conn)
+            return
+        old = len(conn.buf)
+        conn.buf += chunk
+        if conn.need is None:
+            end = _END_OF_HEAD.search(conn.buf, max(0, old - 3))
+            head = len(conn.buf) if end is None else end.end()
+            if head > MAX_HEAD:
+                line = conn.buf.find(b"\n", 0, MAX_HEAD + 1) >= 0
+                code, what = (431, "the request headers are") if line else (414, "the request line is")
+                self._refuse(conn, code, f"{what} longer than the {MAX_HEAD} bytes the server accepts")
+                return
+            if end is None:
+                return
+            conn.need = end.end() + self._body_length(bytes(conn.buf[: end.end()]))
+        if len(conn.buf) >= conn.need:
+            self._dispatch(conn)
+
+    @staticmethod
+    def _body_length(head: bytes) -> int:
+        """The body bytes to read before answering: the one valid Content-Length up to MAX_BODY, else 0 (the
+        handler refuses the request without reading its body)."""
+        lengths = _CONTENT_LENGTH.findall(head)
+        if len(lengths) != 1 or _TRANSFER_ENCODING.search(head) or not re.fullmatch(rb"[0-9]{1,15}", lengths[0]):
+            return 0
+        n = int(lengths[0])
+        return n if n <= MAX_BODY else 0
+
+    def _expire(self, conn: _Conn) -> None:
+        if conn.draining:
+            self._close(conn)
+            return
+        t = self.request_timeout
+        if conn.need is None:
+            self._refuse(conn, 408, f"the request did not arrive within {t:g} s ({len(conn.buf)} bytes came)")
+        else:
+            head = conn.need - self._body_length(bytes(conn.buf[: conn.need]))
+            got, n = len(conn.buf) - head, conn.need - head
+            self._refuse(conn, 408, f"the body did not arrive within {t:g} s ({got} of {n} bytes)")
+
+    def _refuse(self, conn: _Conn, code: int, message: str, extra: dict | None = None) -> None:
+        """Answer from the loop, then read and drop what the client still sends for 2 s (so that closing does not
+        reset the connection before the client has read the answer)."""
+        try:
+            conn.sock.send(error_bytes(code, message, extra))  # a few hundred bytes: fits the empty send buffer
+            conn.sock.shutdown(socket.SHUT_WR)
+        except OSError:
+            self._close(conn)
+            return
+        conn.draining = True
+        conn.deadline = time.monotonic() + 2.0
+        self._pending.move_to_end(conn.sock.fileno())
+
+    def _close(self, conn: _Conn) -> None:
+        self._forget(conn)
+        conn.sock.close()
+
+    def _forget(self, conn: _Conn) -> None:
+        self._pending.pop(conn.sock.fileno(), None)
+        try:
+            self._sel.unregister(conn.sock)
+        except (KeyError, ValueError):
+            pass
+
+    def _dispatch(self, conn: _Conn) -> None:
+        """Give a complete request to the pool (503 when too many wait)."""
+        with self._queued_lock:
+            busy = self._queued >= HANDLER_THREADS + MAX_QUEUED
+            if not busy:
+                self._queued += 1
+        if busy:
+            self._refuse(conn, 503, "the server is busy; retry in a moment", {"Retry-After": str(RETRY_AFTER)})
+            return
+        self._forget(conn)
+        conn.sock.setblocking(True)
+        conn.sock.settimeout(self.request_timeout)
+        self._prefix[id(conn.sock)] = bytes(conn.buf)
+        self._pool.submit(self._answer, conn.sock, conn.addr)
+
+    def _answer(self, sock, addr) -> None:
+        try:
+            self.finish_request(sock, addr)
+        except Exception:
+            self.handle_error(sock, addr)
+        finally:
+            self._prefix.pop(id(sock), None)
+            self.shutdown_request(sock)
+            with self._queued_lock:
+                self._queued -= 1
+
+    def take_prefix(self, sock) -> bytes:
+        """The request bytes the loop read from ``sock``."""
+        return self._prefix.pop(id(sock), b"")
 
     def handle_error(self, request, client_address):
         """One line on stderr instead of a traceback; a client that went away is not an error."""
@@ -359,6 +630,8 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
         def setup(self):
             self.timeout = timeout  # socket time-out of this connection (read by StreamRequestHandler.setup)
             super().setup()
+            self.rfile.close()  # not the socket: the request was read by the server's loop
+            self.rfile = io.BytesIO(self.server.take_prefix(self.request))  # the request, read by the server's loop
             self._body_read = False
 
         def log_message(self, fmt, *args):  # quiet
@@ -368,27 +641,30 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
         def version_string(self):
             return "wallcal"
 
-        def _send(self, code: int, body: bytes, ctype: str, extra: dict | None = None):
-            self.send_response(code)
-            self.send_header("Content-Type", ctype)
-            self.send_header("Content-Length", str(len(body)))
-            self.send_header("Cache-Control", "no-store")
-            self.send_header("X-Content-Type-Options", "nosniff")
-            self.send_header("Referrer-Policy", "no-referrer")
-            self.send_header("X-Frame-Options", "DENY")
-            self.send_header("Connection", "close")
-            for k, v in (extra or {}).items():
-                self.send_header(k, v)
-            self.end_headers()
-            if self.command != "HEAD":
-                self.wfile.write(body)
+        def send_error(self, code, message=None, explain=None):
+            """The standard library's own refusals (a bad request line, too many headers, an unknown method) as
+            one line of JSON with the security headers, like every other answer."""
             self.close_connection = True
-            announced = self.headers.get("Content-Length", "").strip() not in ("", "0")
-            if not self._body_read and (announced or self.headers.get("Transfer-Encoding")):
+            if code == 501:
+                text = f"method {str(self.command)[:20]!r} is not supported (GET, POST, HEAD)"
+            elif code == 431:
+                text = "too many request headers"
+            elif code == 414:
+                text = "the request line is too long"
+            else:
+                text = f"bad request: {message or code}"
+            self._json(code, {"error": text[:200]})
+
+        def _send(self, code: int, body: bytes, ctype: str, extra: dict | None = None):
+            self.wfile.write(answer_bytes(code, body, ctype, extra, head_only=self.command == "HEAD"))
+            self.close_connection = True
+            headers = getattr(self, "headers", None) or {}
+            announced = headers.get("Content-Length", "").strip() not in ("", "0")
+            if not self._body_read and (announced or headers.get("Transfer-Encoding")):
                 self._linger()
 
-        def _json(self, code: int, obj):
-            self._send(code, json.dumps(obj, allow_nan=False).encode(), "application/json")
+        def _json(self, code: int, obj, extra: dict | None = None):
+            self._send(code, json.dumps(obj, allow_nan=False).encode(), "application/json", extra)
 
         def _linger(self):
             """After answering a request whose body was not read: stop sending, then read and drop what the
@@ -408,21 +684,11 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
                 pass
 
         def _read(self, n: int) -> bytes:
-            """Exactly ``n`` body bytes, within the connection's time limit (408 otherwise)."""
-            deadline = time.monotonic() + timeout
-            chunks, got = [], 0
-            try:
-                while got < n:
-                    if time.monotonic() > deadline:
-                        raise TimeoutError
-                    chunk = self.rfile.read1(n - got)
-                    if not chunk:
-                        raise _Refused(400, f"the body ended after {got} of the {n} bytes announced")
-                    chunks.append(chunk)
-                    got += len(chunk)
-            except TimeoutError:
-                raise _Refused(408, f"the body did not arrive within {timeout:g} s ({got} of {n} bytes)") from None
-            return b"".join(chunks)
+            """The ``n`` body bytes (the server's loop waited for them, or for the client to stop sending)."""
+            data = self.rfile.read(n)
+            if len(data) < n:
+                raise _Refused(400, f"the body ended after {len(data)} of the {n} bytes announced")
+            return data
 
         # ---------------------------------------------------------------- checks
         def _check_host(self):
@@ -460,6 +726,8 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
                 raise _Refused(415, f"the API accepts Content-Type: application/json only, got {ctype[:60]!r}")
             if self.headers.get("Transfer-Encoding"):
                 raise _Refused(411, "send the body with a Content-Length (no Transfer-Encoding)")
+            if len(self.headers.get_all("Content-Length") or ()) > 1:
+                raise _Refused(400, "more than one Content-Length header")
             n = (self.headers.get("Content-Length") or "").strip()
             if not n:
                 raise _Refused(411, "a Content-Length header is required")
@@ -473,6 +741,7 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
 
         # ---------------------------------------------------------------- dispatch
         def _handle(self):
+            extra = None
             try:
                 self._check_host()
                 path = urlsplit(self.path).path
@@ -491,9 +760,9 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
                 if self.command != method:
                     raise _Refused(405, f"{path} takes {method}, not {self.command}")
                 answer = action(self._json_body() if method == "POST" else None)
-                code = 200
+                code, extra = 200, None
             except _Refused as exc:
-                code, answer = exc.status, {"error": str(exc)}
+                code, answer, extra = exc.status, {"error": str(exc)}, exc.headers
             except WallcalError as exc:
                 code, answer = 400, {"error": str(exc)}
             except Exception as exc:  # a bug: answer without a traceback, say it on the terminal
@@ -501,7 +770,7 @@ def make_handler(app: ManualCalibration, timeout: float = TIMEOUT):
                     f"wallcal serve: internal error on {self.path[:100]}: {type(exc).__name__}: {exc}", file=sys.stderr
                 )
                 code, answer = 500, {"error": f"internal error ({type(exc).__name__}); see the terminal"}
-            self._json(code, answer)
+            self._json(code, answer, extra)
 
         do_GET = do_POST = do_HEAD = do_PUT = do_DELETE = do_PATCH = do_OPTIONS = _handle
 
@@ -545,7 +814,9 @@ def serve(
         )
     app = ManualCalibration(study_path)
     wildcard = host in ("", "0.0.0.0", "::")
-    httpd = LiveServer((host, port), make_handler(app, timeout), app, token or secrets.token_urlsafe(32), wildcard)
+    httpd = LiveServer(
+        (host, port), make_handler(app, timeout), app, token or secrets.token_urlsafe(32), wildcard, timeout
+    )
     if ready is not None:
         ready(httpd)
     try:
