@@ -27,6 +27,32 @@ import numpy as np
 
 from .standards.iso10456 import temperature_factor
 
+#: Physical range of each layer property a wall file may give, ``(lowest, highest)`` in the property's SI
+#: unit (docs/robustness.md): generous, but a value outside is a typing or unit error, and would give a grid
+#: or a time constant no engine can run (a conductivity of 1e-300 W/(m K) asks for 1e150 nodes).
+LIMITS = {
+    "thickness": (1e-6, 10.0),  # m (massive layer); a no-mass layer may be 0 thick
+    "conductivity": (1e-3, 500.0),  # W/(m K): vacuum insulation core .. beyond copper
+    "density": (0.5, 25_000.0),  # kg/m3: aerogel, air .. beyond osmium
+    "specific_heat": (50.0, 50_000.0),  # J/(kg K): lead .. the apparent heat of a phase-change material
+    "conductivity_temperature_coefficient": (-0.05, 0.05),  # 1/K: ISO 10456 gives 0.003 .. 0.006
+    "reference_temperature": (-100.0, 200.0),  # degC
+    "table_temperature": (-100.0, 200.0),  # degC, a conductivity_table's temperatures
+    "contact_resistance": (0.0, 10.0),  # m2K/W
+    "thermal_resistance": (1e-4, 100.0),  # m2K/W (no-mass layer)
+    "vapour_resistance_factor": (1e-3, 1e8),  # - (mu; a vapour barrier reaches 1e7)
+}
+#: Most layers in a wall (real walls have a few dozen; each layer costs nodes and arrays).
+MAX_LAYERS = 200
+#: Most probes in a wall.
+MAX_PROBES = 200
+#: Most points of a conductivity_table.
+MAX_TABLE_POINTS = 1000
+#: Largest ratio of lambda(T) to the declared conductivity over the data's temperature range (both ways):
+#: beyond it the law is a typing or unit error (ISO 10456's coefficients change lambda by a few per cent per
+#: 10 K), and the schemes lose accuracy (fd-cn and fd-reference end in NaN at a ratio of a few hundred).
+MAX_LAMBDA_RATIO = 10.0
+
 #: Properties of a layer that calibration may change.
 LAYER_PROPERTIES = (
     "conductivity",
