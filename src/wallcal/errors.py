@@ -99,6 +99,23 @@ class OptionalDependencyError(WallcalError):
     """An optional extra is needed but not installed."""
 
 
+def check_finite(series: dict, engine: str, cause: str) -> None:
+    """Raise :class:`EngineError` naming the first series (sensor, probe or face) of ``series`` (name -> array)
+    that holds NaN or inf, and ``cause`` (the likely cause, e.g. :meth:`wallcal.wall.Wall.nonfinite_cause`):
+    a simulation never ends in NaN silently."""
+    import numpy as np
+
+    for name, values in series.items():
+        v = np.asarray(values, dtype=float)
+        bad = ~np.isfinite(v)
+        if bad.any():
+            k = int(np.flatnonzero(bad.ravel())[0])
+            raise EngineError(
+                f"{engine}: the simulated {name!s:.40} is not finite (NaN or inf) from output {k + 1} of {v.size} on; "
+                f"{cause}"
+            )
+
+
 def closest(name: str, valid: Iterable[str], n: int = 3) -> str:
     """Return a hint naming the valid names closest to ``name``.
 
