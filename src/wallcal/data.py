@@ -58,10 +58,10 @@ class Measurements:
 
 
 # ---------------------------------------------------------------------------- reading
-#: Largest data file read, and largest total of a study's data files [bytes]: ten years of 1-minute data in
-#: eight columns take about 320 MB. A larger file is refused before it is read (split it by time and give
-#: only the period, or keep only the columns the study uses).
-MAX_DATA_BYTES = 400_000_000
+#: Largest data file read, and largest total of a study's data files [bytes]: five years of 1-minute data in
+#: eight columns take about 160 MB, and reading 100 MB of CSV peaks at about 0.8 GB. A larger file is refused
+#: before it is read (keep only the period and the columns the study uses).
+MAX_DATA_BYTES = 200_000_000
 #: Longest line of a CSV data file [bytes] (a header of 10,000 columns fits): a longer one is not a table.
 MAX_LINE_BYTES = 1_000_000
 _CHUNK = 1 << 23

@@ -81,7 +81,8 @@ class Table:
             self.problems.add(self.at(key), f"must be a string, got {describe(v)}")
             return None if default is MISSING else default
         if choices is not None and v not in choices:
-            self.problems.add(self.at(key), f"must be one of {', '.join(choices)}; got {v!r}; {closest(v, choices)}")
+            hint = closest(v, choices)
+            self.problems.add(self.at(key), f"must be one of {', '.join(choices)}; got {show(v)}; {hint}")
             return None if default is MISSING else default
         return v
 

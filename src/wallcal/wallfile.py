@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .errors import StudyError, clip
+from .errors import StudyError, clip, show
 from .schema import MISSING, Problems, Table, check_number, describe, read_toml
 from .wall import LIMITS, MAX_LAYERS, MAX_PROBES, MAX_TABLE_POINTS, Layer, Probe, Wall
 
@@ -101,17 +101,26 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None, chain: tuple
             lid = None
         if lid is not None:
             if lid in ids:
-                problems.add(lt.at("id"), f"layer id {lid!r} is used twice")
+                problems.add(lt.at("id"), f"layer id {show(lid)} is used twice")
             ids.add(lid)
         massless = lt.has("thermal_resistance")
         low, high = LIMITS["thickness"]
-        thickness = lt.num(
-            "thickness",
-            0.0 if massless else MISSING,
-            ge=0.0 if massless else low,
-            le=high,
-            gt=None if massless else 0.0,
-        )
+        d = lt.raw("thickness")
+        if not massless and isinstance(d, int | float) and not isinstance(d, bool) and 0 < d < low:
+            problems.add(
+                lt.at("thickness"),
+                f"{d:.3g} m is thinner than {low:g} m; declare the layer massless with thermal_resistance = "
+                "thickness / conductivity [m2K/W] (a film stores no heat), or remove it",
+            )
+            thickness = None
+        else:
+            thickness = lt.num(
+                "thickness",
+                0.0 if massless else MISSING,
+                ge=0.0 if massless else low,
+                le=high,
+                gt=None if massless else 0.0,
+            )
         if thickness is not None:
             geometry_thickness += thickness  # probes are checked against every valid thickness
         kw: dict[str, Any] = {}
@@ -178,7 +187,7 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None, chain: tuple
         side = pt.str("side", None, choices=FACES)
         if name is not None:
             if name in names:
-                problems.add(pt.at("name"), f"probe {name!r} is defined twice")
+                problems.add(pt.at("name"), f"probe {show(name)} is defined twice")
             names.add(name)
         if name is None or depth is None:
             continue
