@@ -425,7 +425,7 @@ class PreparedFD:
                 self._modal_group(per_candidate, idx, self._output_plan(key), want_k, out, tend)
         if not np.isfinite(tend).all():
             raise EngineError(
-                "the modal eigen-decomposition failed (LAPACK's reduction or the QL): a layer is too thin or too "
+                "the modal eigen-decomposition failed: a layer is too thin or too "
                 "conductive next to massive ones; declare it massless with thermal_resistance (thickness / "
                 "conductivity), or use a shorter simulation.time_step or a smaller grid_constant"
             )
