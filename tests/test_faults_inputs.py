@@ -337,6 +337,9 @@ def test_messages_are_cut_and_escaped_centrally():
     msg = format_message("a\x00b\x1b[2J\r" + "x" * 10_000 + "\n" * 100, "wallcal: error: ")
     lines = msg.split("\n")
     assert len(lines) <= 26 and all(len(line) <= MAX_LINE for line in lines)
-    assert lines[0].startswith("wallcal: error: a\\x00b\\x1b[2J\\r") and lines[0].endswith("...")
+    assert lines[0].startswith("wallcal: error: a\\x00b\\x1b[2J\\r") and " ... " in lines[0]
+    long = format_message("data.csv: column " + "y" * 5000 + " not found; did you mean 'T3A'?", "wallcal: error: ")
+    assert len(long) == MAX_LINE and long.startswith("wallcal: error: data.csv: column yyy")
+    assert long.endswith("not found; did you mean 'T3A'?")  # the start and what to do both kept
     many = StudyError([f"wall.layers[{i}].density: must be > 0" for i in range(500)], source="s.toml")
     assert str(many).count("\n") == 21 and str(many).endswith("... and 480 more")

@@ -42,15 +42,23 @@ def show(value, limit: int = MAX_ECHO) -> str:
 
 
 def format_message(msg: str, prefix: str = "") -> str:
-    """``prefix + msg`` as printed: at most :data:`MAX_LINES` lines of at most :data:`MAX_LINE` characters,
-    control characters (NUL, escape sequences, carriage returns) shown escaped (``\\x00``)."""
-    head = msg[: MAX_LINE * (MAX_LINES + 1)]  # never split a huge message whole
-    lines = head.split("\n")
+    """``prefix + msg`` as printed: at most :data:`MAX_LINES` lines of at most :data:`MAX_LINE` characters (a
+    longer line keeps its start and its end, the file and key path and what to do, cut in the middle with
+    `` ... ``), control characters (NUL, escape sequences, carriage returns) shown escaped (``\\x00``)."""
+    most = MAX_LINE * (MAX_LINES + 1)
+    if len(msg) > most:  # never split or escape a huge message whole
+        msg = msg[:most] + msg[-MAX_LINE:]
+    lines = msg.split("\n")
     out = []
     for i, line in enumerate(lines[:MAX_LINES]):
         line = (prefix if i == 0 else "") + line
-        line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in line[: MAX_LINE + 1])
-        out.append(clip(line, MAX_LINE))
+        if len(line) > 2 * MAX_LINE:
+            line = line[:MAX_LINE] + line[-MAX_LINE:]
+        line = "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in line)
+        if len(line) > MAX_LINE:
+            keep = MAX_LINE * 3 // 5
+            line = line[:keep] + " ... " + line[-(MAX_LINE - keep - 5) :]
+        out.append(line)
     if len(lines) > MAX_LINES:
         out.append("  ... (message cut)")
     return "\n".join(out)
