@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, StudyError, closest
+from ..errors import DataError, StudyError, clip, closest
 
 SIGMA = 5.670374419e-8  # Stefan-Boltzmann constant [W/(m2 K4)]
 #: EPW missing-value codes of the fields used (EnergyPlus Auxiliary Programs, "Data Field Descriptions")
@@ -113,7 +113,7 @@ def resolve_weather(weather: str, base_dir: Path | None = None) -> Path:
             f"retrofit.weather: {weather!r} is neither a file next to the study nor a shipped weather file"
             + (f" ({hint})" if hint.startswith("did you") else "")
             + "; shipped: "
-            + ", ".join(shipped)
+            + clip(", ".join(shipped), 110)  # the message stays one line of at most 300 characters
         ]
     )
 
