@@ -148,6 +148,14 @@ def test_grid_beyond_the_node_ceiling_is_refused(tmp_path):
     refused(run, out, "wall.layers[0]: needs 4,473 nodes", "more than 2,000")
 
 
+def test_sensors_beyond_the_ceiling_are_refused(tmp_path):
+    raw = study_dict()
+    flux = {"column": "qe", "quantity": "heat_flux", "depth": 0.05}
+    raw["sensors"] += [dict(flux, name=f"q{i}") for i in range(401)]
+    run, out = simulate(tmp_path, write_study(tmp_path, raw))
+    refused(run, out, "sensors: 406 sensors, more than wallcal compares (400)")
+
+
 def test_two_gigabyte_data_file_is_refused_before_reading(tmp_path):
     data = tmp_path / "big.csv"
     data.write_bytes(DATA.read_bytes())

@@ -44,6 +44,9 @@ MAX_STEPS = 50_000_000
 #: about 0.5 GB and a second per week of 15-s steps, and the cost grows as nodes^2 x steps).
 MAX_NODES = 2000
 
+#: Most sensors one simulation compares (each is an output series as long as the comparison period).
+MAX_SENSORS = 400
+
 
 @dataclass
 class Prepared:
@@ -288,7 +291,13 @@ def node_count(wall, dt: float, C: float, node_rule: str) -> int:
 
 
 def _check_nodes(study: Study, dt: float, C: float, node_rule: str) -> None:
-    """Refuse a grid of more than :data:`MAX_NODES` nodes, naming the layer that needs most."""
+    """Refuse more than :data:`MAX_SENSORS` sensors, and a grid of more than :data:`MAX_NODES` nodes, naming the
+    layer that needs most."""
+    if len(study.sensors) > MAX_SENSORS:
+        raise StudyError(
+            [f"sensors: {len(study.sensors):,} sensors, more than wallcal compares ({MAX_SENSORS})"],
+            source=str(study.path) if study.path else None,
+        )
     n = node_count(study.wall, dt, C, node_rule)
     if n <= MAX_NODES:
         return
