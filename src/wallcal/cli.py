@@ -2,7 +2,8 @@
 
 Each command module registers its sub-parser through ``register(subparsers)``
 and sets ``func(args) -> int``. Errors raised as :class:`WallcalError` are
-printed on one line (``wallcal: error: ...``) with exit status 2; ``--debug``
+printed on one line (``wallcal: error: ...``; :func:`wallcal.errors.format_message`: lines of at most
+300 characters, control characters escaped) with exit status 2; ``--debug``
 shows the traceback instead. Ctrl-C exits with status 130 and a message.
 When numba has to compile the engine's kernels (the first run after installing
 or upgrading, or with an empty ``NUMBA_CACHE_DIR``), a command says so on stderr
@@ -19,7 +20,7 @@ import threading
 
 from numba.core import event
 
-from .errors import WallcalError
+from .errors import WallcalError, format_message
 
 #: numba's event of one compilation (its documented event API; a load from the kernel cache sends none)
 COMPILE_EVENT = "numba:compile"
@@ -117,8 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     except WallcalError as exc:
         if args.debug:
             raise
-        msg = str(exc)
-        print(f"wallcal: error: {msg}", file=sys.stderr)
+        print(format_message(str(exc), "wallcal: error: "), file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into a command that stopped reading (e.g. head)
         sys.stderr.close()

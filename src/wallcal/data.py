@@ -7,6 +7,8 @@ naive in local standard time.
 
 from __future__ import annotations
 
+import codecs
+import csv
 import dataclasses
 import datetime as _dt
 import hashlib
@@ -20,7 +22,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import DataError, closest, require
+from .errors import DataError, clip, closest, require, show
+from .schema import regular_file
 from .study import DataFileSpec, Study
 
 KELVIN = 273.15
@@ -55,74 +58,225 @@ class Measurements:
 
 
 # ---------------------------------------------------------------------------- reading
-def _sniff_separator(path: Path) -> str:
+#: Largest data file read, and largest total of a study's data files [bytes]: five years of 1-minute data in
+#: eight columns take about 160 MB, and reading 100 MB of CSV peaks at about 0.8 GB. A larger file is refused
+#: before it is read (keep only the period and the columns the study uses).
+MAX_DATA_BYTES = 200_000_000
+#: Longest line of a CSV data file [bytes] (a header of 10,000 columns fits): a longer one is not a table.
+MAX_LINE_BYTES = 1_000_000
+_CHUNK = 1 << 23
+
+
+def _check_file(path: Path, key: str = "data.file") -> int:
+    """The size of the data file ``path`` [bytes] after checking, without opening it, that it exists, is a regular
+    file (a FIFO or a device such as ``/dev/zero`` never ends) of at most :data:`MAX_DATA_BYTES` bytes and is
+    not empty."""
+    try:
+        size = regular_file(path, "data", MAX_DATA_BYTES)
+    except FileNotFoundError as exc:
+        raise DataError(f"{key}: file not found: {path}") from exc
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the file: {exc.strerror}") from exc
+    except ValueError as exc:
+        raise DataError(f"{path}: {exc}") from exc
+    if size == 0:
+        raise DataError(f"{path}: the file is empty")
+    return size
+
+
+def _scan_text(path: Path, sep: str, fields: int) -> int:
+    """Refuse a CSV file holding a NUL byte (binary content), bytes that are not UTF-8, a line longer than
+    :data:`MAX_LINE_BYTES`, or (in a file without quotes and with a one-character separator) a row of more than
+    ``fields`` fields, reading it in chunks (memory bounded whatever the file holds). Returns the number of
+    lines."""
+    offset = 0  # of the chunk in the file
+    line_start = 0  # offset of the line under way
+    lines = 0  # complete lines before the chunk
+    seps = 0  # separators of the line under way before the chunk
+    count_fields = len(sep) == 1 and ord(sep) < 128
+    utf8 = codecs.getincrementaldecoder("utf-8")()
     with open(path, "rb") as fh:
-        head = fh.readline().decode("utf-8", errors="replace")
-    counts = {sep: head.count(sep) for sep in (",", "\t", ";")}
-    best = max(counts, key=counts.get)
-    return best if counts[best] > 0 else ","
+        while chunk := fh.read(_CHUNK):
+            k = chunk.find(b"\0")
+            if k >= 0:
+                line = lines + chunk.count(b"\n", 0, k) + 1
+                raise DataError(
+                    f"{path}: holds a NUL byte at byte {offset + k:,} (line {line}): "
+                    "binary content, not CSV text; give the data as a CSV text file (UTF-8) or Parquet"
+                )
+            try:
+                utf8.decode(chunk)
+            except UnicodeDecodeError as exc:
+                raise DataError(
+                    f"{path}: not valid UTF-8 text (byte {offset + exc.start:,}); save the file as UTF-8"
+                ) from exc
+            arr = np.frombuffer(chunk, dtype=np.uint8)
+            nl = np.flatnonzero(arr == 10)
+            starts = np.concatenate([[line_start], nl + offset + 1])
+            ends = np.concatenate([nl + offset, [offset + len(chunk)]])
+            long = np.flatnonzero(ends - starts > MAX_LINE_BYTES)
+            if len(long):
+                raise DataError(
+                    f"{path}: line {lines + int(long[0]) + 1} is longer than {MAX_LINE_BYTES:,} bytes: "
+                    "not a table of measurements (CSV rows)"
+                )
+            count_fields = count_fields and b'"' not in chunk  # quoted fields: pandas counts them
+            if count_fields:
+                cs = np.cumsum(arr == ord(sep), dtype=np.int64)
+                over = np.zeros(0, dtype=np.int64)
+                if len(nl):
+                    at = cs[nl]
+                    per_line = np.diff(at, prepend=0)
+                    per_line[0] += seps
+                    seps = int(cs[-1] - at[-1])
+                    over = np.flatnonzero(per_line >= fields)
+                else:
+                    seps += int(cs[-1])
+                if len(over) or seps >= fields:
+                    i = lines + (int(over[0]) if len(over) else len(nl)) + 1
+                    raise DataError(
+                        f"{path}: line {i} has more fields than the header's {fields}; fix the row or the header"
+                    )
+            line_start = int(starts[-1])
+            lines += len(nl)
+            offset += len(chunk)
+    try:
+        utf8.decode(b"", final=True)
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not valid UTF-8 text (it ends inside a character); save the file as UTF-8") from exc
+    return lines + (offset > line_start)
 
 
-def read_table(path: Path, separator: str | None = None) -> pd.DataFrame:
+def _header(path: Path, separator: str | None, key: str = "data.file") -> tuple[str | None, list[str]]:
+    """Check the data file (:func:`_check_file`, :func:`_scan_text`) and read its header: ``(separator, column
+    names)`` (no separator for Parquet). A column name given twice is an error."""
+    _check_file(path, key)
+    if path.suffix.lower() in (".parquet", ".pq"):
+        require("pyarrow", "parquet")
+        import pyarrow.parquet as pq
+
+        try:
+            names = [str(c).strip() for c in pq.read_schema(path).names]
+        except Exception as exc:  # pyarrow raises many types
+            raise DataError(f"{path}: cannot read as Parquet: {clip(str(exc), 150)}") from exc
+        sep = None
+    else:
+        with open(path, "rb") as fh:
+            raw = fh.readline(MAX_LINE_BYTES + 1)
+        head = raw.decode("utf-8-sig", errors="replace").rstrip("\r\n")  # strict in _scan_text
+        if separator:
+            sep = separator
+        else:
+            counts = {c: head.count(c) for c in (",", "\t", ";")}
+            best = max(counts, key=counts.get)
+            sep = best if counts[best] > 0 else ","
+        try:
+            row = next(csv.reader([head], delimiter=sep, skipinitialspace=True), [])
+        except (csv.Error, TypeError):
+            row = head.split(sep)
+        names = [c.strip() for c in row]
+        if _scan_text(path, sep, max(len(head.split(sep)), 1)) < 2:
+            raise DataError(f"{path}: the file has a header but no data rows")
+    seen: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name and name in seen:
+            raise DataError(
+                f"{path}: column {show(name)} appears twice in the header (columns {seen[name] + 1} and {i + 1}); "
+                "rename or remove one"
+            )
+        seen[name] = i
+    return sep, names
+
+
+def read_table(
+    path: Path, separator: str | None = None, columns: dict[str, tuple[str, str]] | None = None
+) -> pd.DataFrame:
     """Read a CSV (any of , ; tab) or Parquet file into a DataFrame of raw columns.
+
+    Parameters
+    ----------
+    path : Path
+    separator : str, optional
+        Detected from the header when not given.
+    columns : dict, optional
+        Only these columns are read, ``{name: ("float" | "text", study key)}``: text columns as text, float
+        columns as pandas infers them (:func:`_numeric` then names a cell that is not a number). A missing one
+        is an error naming its study key. Default: every column, types inferred.
 
     Raises
     ------
     DataError
-        Missing, empty or unreadable file, with the file name.
+        Missing, empty, non-regular, oversized, binary or unreadable file, a duplicated column name, with the
+        file name.
     """
     path = Path(path)
-    if not path.exists():
-        raise DataError(f"data.file: file not found: {path}")
-    if path.stat().st_size == 0:
-        raise DataError(f"{path}: the file is empty")
-    if path.suffix.lower() in (".parquet", ".pq"):
-        require("pyarrow", "parquet")
+    sep, header = _header(path, separator)
+    return _read(path, sep, header, columns)
+
+
+def _read(path: Path, sep: str | None, header: list[str], columns: dict[str, tuple[str, str]] | None) -> pd.DataFrame:
+    """:func:`read_table` after :func:`_header`."""
+    for col, (_, key) in (columns or {}).items():
+        if col not in header:
+            raise DataError(f"{path}: column {show(col)} ({key}) not found; {closest(col, header)}")
+    if sep is None:
         try:
-            return pd.read_parquet(path)
+            frame = pd.read_parquet(path, columns=[c for c in columns if c in header] if columns else None)
         except Exception as exc:  # pyarrow raises many types
-            raise DataError(f"{path}: cannot read as Parquet: {exc}") from exc
-    sep = separator or _sniff_separator(path)
+            raise DataError(f"{path}: cannot read as Parquet: {clip(str(exc), 150)}") from exc
+        frame.columns = [str(c).strip() for c in frame.columns]
+        return frame
+    kw: dict = {}
+    if columns is not None:  # only these columns; text ones as text (numbers are checked by _numeric)
+        use = {c: columns[c][0] for c in header if c in columns}
+        kw["usecols"] = lambda c: str(c).strip() in use
+        kw["dtype"] = {raw: str for raw in _raw_names(path, sep) if use.get(raw.strip()) == "text"}
     try:
-        frame = pd.read_csv(path, sep=sep, encoding="utf-8", skipinitialspace=True)
+        frame = pd.read_csv(path, sep=sep, encoding="utf-8", skipinitialspace=True, **kw)
     except UnicodeDecodeError as exc:
         raise DataError(f"{path}: not valid UTF-8 text (byte {exc.start}); save the file as UTF-8") from exc
     except pd.errors.EmptyDataError as exc:
         raise DataError(f"{path}: the file is empty") from exc
     except pd.errors.ParserError as exc:
-        raise DataError(f"{path}: cannot parse as CSV: {str(exc).splitlines()[0]}") from exc
+        raise DataError(f"{path}: cannot parse as CSV: {clip(str(exc).splitlines()[0], 150)}") from exc
     if frame.empty:
         raise DataError(f"{path}: the file has a header but no data rows")
     frame.columns = [str(c).strip() for c in frame.columns]
     return frame
 
 
+def _raw_names(path: Path, sep: str) -> list[str]:
+    """The header's names as pandas reads them (before stripping), for ``dtype``."""
+    return [str(c) for c in pd.read_csv(path, sep=sep, encoding="utf-8", skipinitialspace=True, nrows=0).columns]
+
+
 def _column(frame: pd.DataFrame, col: str, key: str, path: Path) -> pd.Series:
     if col not in frame.columns:
-        raise DataError(f"{path}: column {col!r} ({key}) not found; {closest(col, list(frame.columns))}")
+        raise DataError(f"{path}: column {show(col)} ({key}) not found; {closest(col, list(frame.columns))}")
     return frame[col]
 
 
 def _numeric(series: pd.Series, col: str, path: Path) -> np.ndarray:
     if pd.api.types.is_bool_dtype(series.dtype):
-        raise DataError(f"{path}: column {col!r} holds true/false values, not numbers")
+        raise DataError(f"{path}: column {show(col)} holds true/false values, not numbers")
     values = pd.to_numeric(series, errors="coerce")
-    bad = values.isna() & series.notna() & (series.astype(str).str.strip() != "")
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise DataError(
-            f"{path}: column {col!r} has a non-numeric value {series.iloc[i]!r} at data row {i + 1} "
-            f"(line {i + 2}); fix or blank it"
-        )
+    if not pd.api.types.is_float_dtype(series.dtype):  # read as text: name the first cell that is not a number
+        bad = values.isna() & series.notna() & (series.astype(str).str.strip() != "")
+        if bad.any():
+            i = int(np.flatnonzero(bad.to_numpy())[0])
+            raise DataError(
+                f"{path}: column {show(col)} has a non-numeric value {show(series.iloc[i])} at data row {i + 1} "
+                f"(line {i + 2}); fix or blank it"
+            )
     out = values.to_numpy(dtype=float)
     if np.isinf(out).any():
         i = int(np.flatnonzero(np.isinf(out))[0])
-        raise DataError(f"{path}: column {col!r} has an infinite value at data row {i + 1} (line {i + 2})")
+        raise DataError(f"{path}: column {show(col)} has an infinite value at data row {i + 1} (line {i + 2})")
     huge = np.abs(out) > 1e15  # beyond any physical reading; squares of such values overflow in the metrics
     if huge.any():
         i = int(np.flatnonzero(huge)[0])
         raise DataError(
-            f"{path}: column {col!r} has a value out of any physical range, {out[i]:g}, at data row "
+            f"{path}: column {show(col)} has a value out of any physical range, {out[i]:g}, at data row "
             f"{i + 1} (line {i + 2})"
         )
     return out
@@ -141,12 +295,12 @@ def _timestamps(
         secs = _numeric(col, spec.time_column, path)
         if np.isnan(secs).any():
             i = int(np.flatnonzero(np.isnan(secs))[0])
-            raise DataError(f"{path}: column {spec.time_column!r} is empty at data row {i + 1} (line {i + 2})")
+            raise DataError(f"{path}: column {show(spec.time_column)} is empty at data row {i + 1} (line {i + 2})")
         try:
             idx = pd.DatetimeIndex(pd.Timestamp(spec.start) + pd.to_timedelta(secs, unit="s"))
         except (OverflowError, pd.errors.OutOfBoundsTimedelta, pd.errors.OutOfBoundsDatetime) as exc:
             raise DataError(
-                f"{path}: column {spec.time_column!r} has elapsed seconds that put the timestamps "
+                f"{path}: column {show(spec.time_column)} has elapsed seconds that put the timestamps "
                 f"outside the years 1677-2262 (from {np.nanmin(secs):g} to {np.nanmax(secs):g} s after "
                 "data.start)"
             ) from exc
@@ -157,7 +311,7 @@ def _timestamps(
         except (ValueError, TypeError) as exc:
             if "mixed timezones" in str(exc).lower() or "mixed time" in str(exc).lower():
                 raise DataError(
-                    f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
+                    f"{path}: column {show(spec.time_column)} mixes time-zone offsets (e.g. summer and "
                     "winter time) or naive and aware timestamps; wallcal needs one local standard "
                     "time: convert the column to a single offset"
                 ) from exc
@@ -167,17 +321,17 @@ def _timestamps(
                     _dt.datetime.fromisoformat(v)
                 except ValueError:
                     raise DataError(
-                        f"{path}: column {spec.time_column!r} has a value that is not an ISO 8601 date-time: "
-                        f"{v!r} at data row {i + 1} (line {i + 2})"
+                        f"{path}: column {show(spec.time_column)} has a value that is not an ISO 8601 date-time: "
+                        f"{show(v)} at data row {i + 1} (line {i + 2})"
                     ) from exc
             raise DataError(
-                f"{path}: column {spec.time_column!r}: mixed time-zone offsets or unreadable "
-                f"date-times ({exc}); give every timestamp the same offset or none"
+                f"{path}: column {show(spec.time_column)}: mixed time-zone offsets or unreadable "
+                f"date-times ({clip(str(exc), 100)}); give every timestamp the same offset or none"
             ) from exc
         if isinstance(parsed, pd.Series):
             if parsed.dtype == object:
                 raise DataError(
-                    f"{path}: column {spec.time_column!r} mixes time-zone offsets (e.g. summer and "
+                    f"{path}: column {show(spec.time_column)} mixes time-zone offsets (e.g. summer and "
                     "winter time) or naive and aware timestamps; wallcal needs one local standard "
                     "time: convert the column or give data.utc_offset"
                 )
@@ -187,7 +341,7 @@ def _timestamps(
         if idx.tz is not None:
             if spec.utc_offset is None:
                 raise DataError(
-                    f"{path}: column {spec.time_column!r} carries a time-zone offset; give "
+                    f"{path}: column {show(spec.time_column)} carries a time-zone offset; give "
                     'data.utc_offset (the offset of local standard time, e.g. "+01:00") so that '
                     "wallcal can convert to local standard time"
                 )
@@ -195,7 +349,7 @@ def _timestamps(
             idx = idx.tz_convert(offset).tz_localize(None)
     if idx.isna().any():
         i = int(np.flatnonzero(idx.isna())[0])
-        raise DataError(f"{path}: column {spec.time_column!r} is empty at data row {i + 1} (line {i + 2})")
+        raise DataError(f"{path}: column {show(spec.time_column)} is empty at data row {i + 1} (line {i + 2})")
     d = np.diff(idx.asi8)
     if (d == 0).any():
         i = int(np.flatnonzero(d == 0)[0])
@@ -230,7 +384,7 @@ def _check_temperature(values_C: np.ndarray, col: str, unit: str, path) -> None:
         i = int(np.flatnonzero(bad)[0])
         hint = ' (is the column in kelvin? say unit = "K")' if unit == "degC" else ""
         raise DataError(
-            f"{path}: column {col!r} holds a temperature below absolute zero at data row {i + 1} "
+            f"{path}: column {show(col)} holds a temperature below absolute zero at data row {i + 1} "
             f"(line {i + 2}): {values_C[i] + (KELVIN if unit == 'K' else 0):g} {unit}{hint}"
         )
 
@@ -340,19 +494,28 @@ def read_joined(study: Study) -> tuple[pd.DataFrame, list[str]]:
     owner: dict[str, str] = {}
     available: list[str] = []
     stamps = []
+    total = 0
     for i, f in enumerate(spec.files):
         key = f"data.files[{i}]"
-        if not f.file.exists():
-            raise DataError(f"{key}.file: file not found: {f.file}")
-        raw = read_table(f.file, f.separator or spec.separator)
+        total += _check_file(f.file, f"{key}.file")
+        if total > MAX_DATA_BYTES:
+            raise DataError(
+                f"{key}.file: the data files up to {f.file.name} hold {total / 1e6:,.0f} MB, more than wallcal reads "
+                f"({MAX_DATA_BYTES / 1e6:,.0f} MB)"
+            )
+        sep, header = _header(f.file, f.separator or spec.separator, f"{key}.file")
+        pairs = _file_columns(f, header, key)
+        time_kind = "float" if spec.time_format == "elapsed_seconds" else "text"
+        needed = {f.time_column: (time_kind, f"{key}.time_column")}
+        needed.update({col: ("float", f"{key}") for name, col in pairs if name in wanted})
+        raw = _read(f.file, sep, header, needed)
         index = _timestamps(raw, study, f.file, f.time_column, f"{key}.time_column")
         stamps.append(index)
-        pairs = _file_columns(f, raw, key)
         cols: dict[str, np.ndarray] = {}
         for name, col in pairs:
             if name in owner:
                 raise DataError(
-                    f"{f.file}: column {col!r} would be named {name!r}, which {owner[name]} already "
+                    f"{f.file}: column {show(col)} would be named {show(name)}, which {owner[name]} already "
                     f"gives; use a prefix or a columns mapping in {key}"
                 )
             owner[name] = f"{key} ({f.file.name})"
@@ -362,7 +525,9 @@ def read_joined(study: Study) -> tuple[pd.DataFrame, list[str]]:
         parts.append(pd.DataFrame(cols, index=index))
     for col, key in wanted.items():
         if col not in owner:
-            raise DataError(f"data.files: column {col!r} ({key}) is not given by any file; {closest(col, available)}")
+            raise DataError(
+                f"data.files: column {show(col)} ({key}) is not given by any file; {closest(col, available)}"
+            )
     frame = pd.concat(parts, axis=1, join="outer", sort=True)
     frame.index.name = "timestamp"
     common = stamps[0]
@@ -376,16 +541,16 @@ def read_joined(study: Study) -> tuple[pd.DataFrame, list[str]]:
     return frame, notes
 
 
-def _file_columns(f: DataFileSpec, raw: pd.DataFrame, key: str) -> list[tuple[str, str]]:
-    """(name in the study, column in the file) for one of ``[[data.files]]``."""
+def _file_columns(f: DataFileSpec, header: list[str], key: str) -> list[tuple[str, str]]:
+    """(name in the study, column in the file) for one of ``[[data.files]]``, from its ``header``."""
     if f.columns is not None:
         for name, col in f.columns:
-            if col not in raw.columns:
+            if col not in header:
                 raise DataError(
-                    f"{f.file}: column {col!r} ({key}.columns.{name}) not found; {closest(col, list(raw.columns))}"
+                    f"{f.file}: column {show(col)} ({key}.columns.{clip(name)}) not found; {closest(col, header)}"
                 )
         return list(f.columns)
-    return [(f.prefix + c, c) for c in raw.columns if c != f.time_column]
+    return [(f.prefix + c, c) for c in header if c and c != f.time_column]
 
 
 def data_sha256(study: Study) -> str:
@@ -485,7 +650,13 @@ def _read_measurements(study: Study) -> Measurements:
         path = "data.files (" + ", ".join(f.file.name for f in spec.files) + ")"
     else:
         path = spec.file
-        raw = read_table(path, spec.separator)
+        time_kind = "float" if spec.time_format == "elapsed_seconds" else "text"
+        needed = {spec.time_column: (time_kind, "data.time_column")}
+        for face, b in (("exterior", study.exterior), ("interior", study.interior)):
+            needed.setdefault(b.column, ("float", f"boundary.{face}.column"))
+        for i, sensor in enumerate(study.sensors):
+            needed.setdefault(sensor.column, ("float", f"sensors[{i}].column"))
+        raw = read_table(path, spec.separator, needed)
         index = _timestamps(raw, study, path)
     cols: dict[str, np.ndarray] = {}
     for face, b in (("exterior", study.exterior), ("interior", study.interior)):
@@ -538,18 +709,18 @@ def _read_measurements(study: Study) -> Measurements:
             inside = (index >= warm - margin) & (index <= end + margin)
         ok = np.isfinite(v) & inside
         if not ok.any():
-            raise DataError(f"{path}: column {b.column!r} (boundary.{face}) has no value in the period")
+            raise DataError(f"{path}: column {show(b.column)} (boundary.{face}) has no value in the period")
         t_ok = index[ok]
         if t_ok[0] > warm or t_ok[-1] < end:
             raise DataError(
-                f"{path}: column {b.column!r} (boundary.{face}) has no value at the start or end of the period "
+                f"{path}: column {show(b.column)} (boundary.{face}) has no value at the start or end of the period "
                 f"({t_ok[0]} .. {t_ok[-1]} inside {warm} .. {end}); move the period or fill the data"
             )
         for a, c, secs in find_gaps(index, np.where(inside, v, np.nan), warm, end):
             if secs > spec.max_gap:
                 raise DataError(
-                    f"{path}: column {b.column!r} (boundary.{face}) has a gap of {secs / 3600:.2f} h from {a} to {c}, "
-                    f"longer than data.max_gap = {spec.max_gap:g} s; raise max_gap or move the period"
+                    f"{path}: column {show(b.column)} (boundary.{face}) has a gap of {secs / 3600:.2f} h from {a} "
+                    f"to {c}, longer than data.max_gap = {spec.max_gap:g} s; raise max_gap or move the period"
                 )
             gap_rows.append((b.column, a, c, secs))
     gaps = pd.DataFrame(gap_rows, columns=["signal", "start", "end", "seconds"])

@@ -11,14 +11,21 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+import os
+import stat
 import tomllib
 from pathlib import Path
 from typing import Any
 
-from .errors import StudyError, closest
+from .errors import StudyError, clip, closest, show
 
 #: the default of a required key
 MISSING = object()
+
+#: largest TOML file read (a study or wall file is a few kB) [bytes]
+MAX_TOML_BYTES = 4_000_000
+#: deepest nesting of tables and arrays in a TOML file (a study nests 5: ``wall.layers[0].conductivity_table[0]``)
+MAX_TOML_DEPTH = 16
 
 
 class Problems(list):
@@ -30,13 +37,11 @@ class Problems(list):
 
 def describe(value: Any) -> str:
     """How a wrong value is named in a message (``'abc'``, ``a table``, ``a list``, ``1.5``)."""
-    if isinstance(value, str):
-        return repr(value)
     if isinstance(value, dict):
         return "a table"
     if isinstance(value, list):
         return "a list"
-    return repr(value)
+    return show(value)
 
 
 class Table:
@@ -53,7 +58,7 @@ class Table:
         self.data = data
         for key in data:
             if key not in allowed:
-                problems.add(self.at(key), f"unknown key; {closest(key, allowed)}")
+                problems.add(self.at(clip(key)), f"unknown key; {closest(key, allowed)}")
 
     def at(self, key: str) -> str:
         """The key path of ``key`` in this table (``wall.layers[2].conductivity``)."""
@@ -76,7 +81,8 @@ class Table:
             self.problems.add(self.at(key), f"must be a string, got {describe(v)}")
             return None if default is MISSING else default
         if choices is not None and v not in choices:
-            self.problems.add(self.at(key), f"must be one of {', '.join(choices)}; got {v!r}; {closest(v, choices)}")
+            hint = closest(v, choices)
+            self.problems.add(self.at(key), f"must be one of {', '.join(choices)}; got {show(v)}; {hint}")
             return None if default is MISSING else default
         return v
 
@@ -172,7 +178,7 @@ def to_datetime(v, path, problems):
         try:
             out = _dt.datetime.fromisoformat(v)
         except ValueError:
-            problems.add(path, f"must be a date-time like 2025-05-30T00:00:00, got {v!r}")
+            problems.add(path, f"must be a date-time like 2025-05-30T00:00:00, got {show(v)}")
             return None
         if out.tzinfo is not None:
             problems.add(path, "give a local date-time without a time-zone offset (local standard time)")
@@ -182,10 +188,53 @@ def to_datetime(v, path, problems):
     return None
 
 
+def regular_file(path: Path, what: str, limit: int) -> int:
+    """The size [bytes] of ``path`` after checking, without opening it, that it is a regular file of at most
+    ``limit`` bytes (a FIFO, a device such as ``/dev/zero`` or a directory would block or never end).
+
+    Raises
+    ------
+    OSError
+        From ``os.stat`` (FileNotFoundError for a missing file).
+    ValueError
+        With the problem in words (the caller adds the file and raises its own error type).
+    """
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "a FIFO, socket or device"
+        raise ValueError(f"is not a regular file ({kind}); give a {what} file")
+    if st.st_size > limit:
+        raise ValueError(
+            f"is {st.st_size / 1e6:,.0f} MB, larger than wallcal reads as a {what} file ({limit / 1e6:,.0f} MB)"
+        )
+    return st.st_size
+
+
+def toml_depth(data) -> int:
+    """Deepest nesting of tables and arrays in parsed TOML (walked without recursion)."""
+    deepest = 0
+    stack = [(data, 0)]
+    while stack:
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        if isinstance(node, dict):
+            stack.extend((v, depth + 1) for v in node.values() if isinstance(v, dict | list))
+        elif isinstance(node, list):
+            stack.extend((v, depth + 1) for v in node if isinstance(v, dict | list))
+    return deepest
+
+
 def read_toml(path: Path) -> dict:
-    """The parsed TOML file; a :class:`StudyError` naming the file when it cannot be read."""
-    if not path.exists():
-        raise StudyError([f"file not found: {path}"], source=str(path))
+    """The parsed TOML file; a :class:`StudyError` naming the file when it cannot be read, is not a regular file,
+    is larger than :data:`MAX_TOML_BYTES`, is not UTF-8 TOML, or nests deeper than :data:`MAX_TOML_DEPTH`."""
+    try:
+        regular_file(path, "TOML", MAX_TOML_BYTES)
+    except FileNotFoundError as exc:
+        raise StudyError([f"file not found: {path}"], source=str(path)) from exc
+    except OSError as exc:
+        raise StudyError([f"cannot read the file: {exc.strerror}"], source=str(path)) from exc
+    except ValueError as exc:
+        raise StudyError([str(exc)], source=str(path)) from exc
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -196,7 +245,15 @@ def read_toml(path: Path) -> dict:
         raise StudyError(
             [f"not valid UTF-8 text (byte {exc.start}): save the file as UTF-8"], source=str(path)
         ) from exc
+    too_deep = f"tables or arrays nested deeper than {MAX_TOML_DEPTH} levels; a study nests 5 at most"
     try:
-        return tomllib.loads(text)
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise StudyError([f"not valid TOML: {exc}"], source=str(path)) from exc
+        raise StudyError([f"not valid TOML: {clip(str(exc), 200)}"], source=str(path)) from exc
+    except RecursionError as exc:  # tomllib parses nested arrays and inline tables recursively
+        raise StudyError([too_deep], source=str(path)) from exc
+    except ValueError as exc:  # e.g. an integer beyond Python's digit limit
+        raise StudyError([f"not valid TOML: {clip(str(exc), 200)}"], source=str(path)) from exc
+    if toml_depth(raw) > MAX_TOML_DEPTH:
+        raise StudyError([too_deep], source=str(path))
+    return raw

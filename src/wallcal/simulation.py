@@ -30,7 +30,8 @@ from . import metrics as _metrics
 from .data import Measurements, load_measurements, summarize
 from .engines import engine_for, get_engine, scheme_of
 from .engines.base import BoundaryInput, Engine, EngineOptions, EngineOutput, SimulationInput
-from .errors import StudyError
+from .errors import StudyError, check_finite
+from .grid import intervals_for_layer
 from .study import Study
 
 #: What calibration, the analyses and the live page need of an engine: batches of candidate walls.
@@ -38,6 +39,13 @@ BATCH_NEEDS = ("batches",)
 
 #: Most time steps one simulation may take (a 10-year record at 10 s is about 31 million).
 MAX_STEPS = 50_000_000
+
+#: Most nodes of a wall's grid (a 24-layer wall at dt = 10 s and C = 2 has a few hundred; 2,000 nodes cost
+#: about 0.5 GB and a second per week of 15-s steps, and the cost grows as nodes^2 x steps).
+MAX_NODES = 2000
+
+#: Most sensors one simulation compares (each is an output series as long as the comparison period).
+MAX_SENSORS = 400
 
 
 @dataclass
@@ -232,6 +240,8 @@ def _prepare(study: Study, engine: str, dt: float, C: float, node_rule: str, mea
                 f"{MAX_STEPS:,}; use a larger time step or a shorter period"
             ]
         )
+    _check_nodes(study, dt, C, node_rule)
+    _check_conductivity(study, frame, t0, end)
     grid_s = np.arange(n_steps + 1) * dt
     t_s = (frame.index - t0).total_seconds().to_numpy()
 
@@ -265,6 +275,63 @@ def _prepare(study: Study, engine: str, dt: float, C: float, node_rule: str, mea
         options=EngineOptions(stiff_limit=sim.stiff_limit),
     )
     return Prepared(study=study, measurements=meas, inp=inp, times=times, measured=measured, engine_name=engine)
+
+
+def node_count(wall, dt: float, C: float, node_rule: str) -> int:
+    """Nodes of ``wall``'s grid at time step ``dt`` [s] and grid constant ``C`` (as :func:`wallcal.grid.build_grid`
+    lays them out, counting a contact node at every contact resistance), without building it."""
+    n = 1
+    for layer in wall.layers:
+        if layer.is_massless:
+            n += 1
+        else:
+            n += intervals_for_layer(layer.thickness, layer.diffusivity, dt, C, node_rule)
+        n += 1 if layer.contact_resistance else 0
+    return n
+
+
+def _check_nodes(study: Study, dt: float, C: float, node_rule: str) -> None:
+    """Refuse more than :data:`MAX_SENSORS` sensors, and a grid of more than :data:`MAX_NODES` nodes, naming the
+    layer that needs most."""
+    if len(study.sensors) > MAX_SENSORS:
+        raise StudyError(
+            [f"sensors: {len(study.sensors):,} sensors, more than wallcal compares ({MAX_SENSORS})"],
+            source=str(study.path) if study.path else None,
+        )
+    n = node_count(study.wall, dt, C, node_rule)
+    if n <= MAX_NODES:
+        return
+    per = [
+        0 if layer.is_massless else intervals_for_layer(layer.thickness, layer.diffusivity, dt, C, node_rule)
+        for layer in study.wall.layers
+    ]
+    i = int(np.argmax(per))
+
+    def count(k: int) -> str:
+        return f"{k:,}" if k < 10**9 else f"{k:.3g}"
+
+    raise StudyError(
+        [
+            f"wall.layers[{i}]: needs {count(per[i])} nodes at dt = {dt:g} s and C = {C:g} (the wall {count(n)}), "
+            f"more than {MAX_NODES:,}; check its properties, or raise simulation.time_step or grid_constant"
+        ],
+        source=str(study.path) if study.path else None,
+    )
+
+
+def _check_conductivity(study: Study, frame: pd.DataFrame, t0, end) -> None:
+    """Refuse a lambda(T) law that leaves its range over the data's temperatures (``Wall.conductivity_problems``)."""
+    if study.wall.is_linear:
+        return
+    cols = [face for face, b in (("exterior", study.exterior), ("interior", study.interior)) if b.type != "heat_flux"]
+    cols += [s.name for s in study.sensors if s.quantity == "temperature"]
+    window = frame.loc[(frame.index >= t0) & (frame.index <= end), cols].to_numpy(dtype=float)
+    window = window[np.isfinite(window)]
+    if not len(window):
+        return
+    problems = study.wall.conductivity_problems(float(window.min()), float(window.max()))
+    if problems:
+        raise StudyError(problems, source=str(study.path) if study.path else None)
 
 
 @dataclass
@@ -348,6 +415,7 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     sim = np.empty((len(names), len(prep.times)))  # one row per sensor: the layout of a DataFrame's block
     for k, c in enumerate(cols):
         sim[k] = c
+    check_finite(dict(zip(names, sim, strict=True)), engine, study.wall.nonfinite_cause())
     simulated = pd.DataFrame(sim.T, index=prep.times, columns=prep.sensor_index(), copy=False)
     met = _metrics.table_arrays(
         prep.signal_names(), prep.measured_array(), sim, prep.accuracies(), prep.measured_stats()

@@ -27,6 +27,32 @@ import numpy as np
 
 from .standards.iso10456 import temperature_factor
 
+#: Physical range of each layer property a wall file may give, ``(lowest, highest)`` in the property's SI
+#: unit (docs/robustness.md): generous, but a value outside is a typing or unit error, and would give a grid
+#: or a time constant no engine can run (a conductivity of 1e-300 W/(m K) asks for 1e150 nodes).
+LIMITS = {
+    "thickness": (1e-6, 10.0),  # m (massive layer); a no-mass layer may be 0 thick
+    "conductivity": (1e-3, 500.0),  # W/(m K): vacuum insulation core .. beyond copper
+    "density": (0.5, 25_000.0),  # kg/m3: aerogel, air .. beyond osmium
+    "specific_heat": (50.0, 50_000.0),  # J/(kg K): lead .. the apparent heat of a phase-change material
+    "conductivity_temperature_coefficient": (-0.05, 0.05),  # 1/K: ISO 10456 gives 0.003 .. 0.006
+    "reference_temperature": (-100.0, 200.0),  # degC
+    "table_temperature": (-100.0, 200.0),  # degC, a conductivity_table's temperatures
+    "contact_resistance": (0.0, 10.0),  # m2K/W
+    "thermal_resistance": (1e-4, 100.0),  # m2K/W (no-mass layer)
+    "vapour_resistance_factor": (1e-3, 1e8),  # - (mu; a vapour barrier reaches 1e7)
+}
+#: Most layers in a wall (real walls have a few dozen; each layer costs nodes and arrays).
+MAX_LAYERS = 200
+#: Most probes in a wall.
+MAX_PROBES = 200
+#: Most points of a conductivity_table.
+MAX_TABLE_POINTS = 1000
+#: Largest ratio of lambda(T) to the declared conductivity over the data's temperature range (both ways):
+#: beyond it the law is a typing or unit error (ISO 10456's coefficients change lambda by a few per cent per
+#: 10 K), and the schemes lose accuracy (fd-cn and fd-reference end in NaN at a ratio of a few hundred).
+MAX_LAMBDA_RATIO = 10.0
+
 #: Properties of a layer that calibration may change.
 LAYER_PROPERTIES = (
     "conductivity",
@@ -142,6 +168,15 @@ class Layer:
         )
         return float(lam) if np.ndim(lam) == 0 else lam
 
+    def conductivity_range(self, low_C: float, high_C: float) -> tuple[float, float]:
+        """Lowest and highest conductivity [W/(m K)] over the temperatures ``low_C`` .. ``high_C`` [degC]
+        (the exponential law is monotone; a table is piecewise linear, so its points and the ends suffice)."""
+        temps = [low_C, high_C]
+        if self.conductivity_table is not None:
+            temps += [t for t, _ in self.conductivity_table if low_C < t < high_C]
+        lam = np.atleast_1d(self.conductivity_at(np.asarray(temps, dtype=float)))
+        return float(np.min(lam)), float(np.max(lam))
+
     def replace(self, **changes) -> Layer:
         """A copy with some fields changed."""
         return dataclasses.replace(self, **changes)
@@ -237,6 +272,44 @@ class Wall:
     def is_linear(self) -> bool:
         """True when no conductivity depends on temperature."""
         return not any(layer.is_temperature_dependent for layer in self.layers)
+
+    def conductivity_problems(self, low_C: float, high_C: float) -> list[str]:
+        """What is wrong with the layers' lambda(T) over the temperatures ``low_C`` .. ``high_C`` [degC] (the
+        data's): each problem ``"wall.layers[i]...: ..."``; empty when every lambda(T) stays within
+        ``LIMITS["conductivity"]`` and within a factor :data:`MAX_LAMBDA_RATIO` of the declared conductivity."""
+        out = []
+        lowest, highest = LIMITS["conductivity"]
+        for i, layer in enumerate(self.layers):
+            if not layer.is_temperature_dependent:
+                continue
+            lo, hi = layer.conductivity_range(low_C, high_C)
+            ref = float(layer.conductivity_at(layer.reference_temperature))
+            if lo >= lowest and hi <= highest and hi <= MAX_LAMBDA_RATIO * ref and lo >= ref / MAX_LAMBDA_RATIO:
+                continue
+            key = (
+                "conductivity_table"
+                if layer.conductivity_table is not None
+                else ("conductivity_temperature_coefficient")
+            )
+            out.append(
+                f"wall.layers[{i}].{key}: lambda(T) spans {lo:.3g} .. {hi:.3g} W/(m K) over the data's "
+                f"{low_C:.1f} .. {high_C:.1f} degC, beyond {lowest:g} .. {highest:g} or a factor "
+                f"{MAX_LAMBDA_RATIO:g} of its {ref:.3g} (ISO 10456: about 0.005 1/K)"
+            )
+        return out
+
+    def nonfinite_cause(self) -> str:
+        """The likely cause of a simulation that ended in NaN or inf, and what to do, in words."""
+        nonlinear = [f"{i}" for i, layer in enumerate(self.layers) if layer.is_temperature_dependent]
+        if nonlinear:
+            return (
+                f"likely cause: the lambda(T) law of wall.layers[{', '.join(nonlinear[:5])}]; lower its "
+                "conductivity_temperature_coefficient or conductivity_table, or use a shorter time step or fd-implicit"
+            )
+        return (
+            "likely cause: a very thin or very conductive layer next to a massive one; use a shorter "
+            "simulation.time_step or a smaller grid_constant, or declare the thin layer massless (thermal_resistance)"
+        )
 
     # ------------------------------------------------------------------ editing
     def replace_layer(self, layer_id: str, **changes) -> Wall:

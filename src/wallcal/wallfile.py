@@ -11,9 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .errors import StudyError
+from .errors import StudyError, clip, show
 from .schema import MISSING, Problems, Table, check_number, describe, read_toml
-from .wall import Layer, Probe, Wall
+from .wall import LIMITS, MAX_LAYERS, MAX_PROBES, MAX_TABLE_POINTS, Layer, Probe, Wall
 
 FACES = ("exterior", "interior")
 
@@ -33,22 +33,58 @@ LAYER_KEYS = (
 )
 PROBE_KEYS = ("name", "depth", "depth_from", "side")
 WALL_KEYS = ("name", "description", "layers", "probes", "file")
+#: Most wall files in a chain of ``[wall] file = ...`` references (a study's wall file, that one's, ...).
+MAX_WALL_FILES = 4
 
 
-def parse_wall(t: Table, problems: Problems, base_dir: Path | None) -> Wall | None:
+class WallFileCycle(StudyError):
+    """``[wall] file`` references that lead back to a file already being read (reported once, not nested)."""
+
+
+def _limits(name: str) -> dict:
+    low, high = LIMITS[name]
+    return {"ge": low, "le": high}
+
+
+def parse_wall(t: Table, problems: Problems, base_dir: Path | None, chain: tuple[Path, ...] = ()) -> Wall | None:
+    """The wall of a ``[wall]`` table, or None after recording every problem in ``problems``.
+
+    ``chain``: the wall files being read around this one (resolved paths), to refuse a cycle of ``file``
+    references and chains longer than :data:`MAX_WALL_FILES`.
+    """
     if t.has("file"):
         others = [k for k in t.data if k not in ("file",)]
         fname = t.str("file")
         if others:
-            problems.add(t.path, f"with 'file', give no other wall keys (found {', '.join(others)})")
+            problems.add(t.path, f"with 'file', give no other wall keys (found {clip(', '.join(others), 100)})")
         if fname is None:
             return None
         path = (base_dir / fname) if base_dir else Path(fname)
+        resolved = path.resolve()
+        if resolved in chain:
+            names = " -> ".join(p.name for p in (*chain[chain.index(resolved) :], resolved))
+            raise WallFileCycle(
+                [
+                    f"{t.at('file')}: the wall files refer back to themselves ({clip(names, 150)}); "
+                    "point wall.file to a file that gives [[wall.layers]]"
+                ],
+                source=str(path),
+            )
+        if len(chain) >= MAX_WALL_FILES:
+            problems.add(t.at("file"), f"wall files refer to further wall files more than {MAX_WALL_FILES} deep")
+            return None
         try:
-            return load_wall(path)
+            return load_wall(path, _chain=(*chain, resolved))
+        except WallFileCycle:
+            raise
         except StudyError as exc:
             for p in exc.problems:
-                problems.append(f"{t.path}.file ({path}): {p}")
+                problems.append(f"{t.path}.file ({clip(str(path), 100)}): {p}")
+            return None
+    for key, most in (("layers", MAX_LAYERS), ("probes", MAX_PROBES)):
+        items = t.raw(key)
+        if isinstance(items, list) and len(items) > most:
+            problems.add(t.at(key), f"{len(items):,} {key}, more than wallcal takes ({most})")
             return None
     layers: list[Layer] = []
     ids: set[str] = set()
@@ -65,17 +101,31 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None) -> Wall | No
             lid = None
         if lid is not None:
             if lid in ids:
-                problems.add(lt.at("id"), f"layer id {lid!r} is used twice")
+                problems.add(lt.at("id"), f"layer id {show(lid)} is used twice")
             ids.add(lid)
         massless = lt.has("thermal_resistance")
-        thickness = lt.num(
-            "thickness", 0.0 if massless else MISSING, ge=0.0 if massless else None, gt=None if massless else 0.0
-        )
+        low, high = LIMITS["thickness"]
+        d = lt.raw("thickness")
+        if not massless and isinstance(d, int | float) and not isinstance(d, bool) and 0 < d < low:
+            problems.add(
+                lt.at("thickness"),
+                f"{d:.3g} m is thinner than {low:g} m; declare the layer massless with thermal_resistance = "
+                "thickness / conductivity [m2K/W] (a film stores no heat), or remove it",
+            )
+            thickness = None
+        else:
+            thickness = lt.num(
+                "thickness",
+                0.0 if massless else MISSING,
+                ge=0.0 if massless else low,
+                le=high,
+                gt=None if massless else 0.0,
+            )
         if thickness is not None:
             geometry_thickness += thickness  # probes are checked against every valid thickness
         kw: dict[str, Any] = {}
         if massless:
-            kw["thermal_resistance"] = lt.num("thermal_resistance", gt=0.0)
+            kw["thermal_resistance"] = lt.num("thermal_resistance", gt=0.0, **_limits("thermal_resistance"))
             for k in (
                 "conductivity",
                 "density",
@@ -89,11 +139,13 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None) -> Wall | No
             table = None
             if lt.has("conductivity_table"):
                 table = _parse_table(lt.raw("conductivity_table"), lt.at("conductivity_table"), problems)
-            kw["conductivity"] = lt.num("conductivity", None if table is not None else MISSING, gt=0.0)
-            kw["density"] = lt.num("density", gt=0.0)
-            kw["specific_heat"] = lt.num("specific_heat", gt=0.0)
+            kw["conductivity"] = lt.num(
+                "conductivity", None if table is not None else MISSING, gt=0.0, **_limits("conductivity")
+            )
+            kw["density"] = lt.num("density", gt=0.0, **_limits("density"))
+            kw["specific_heat"] = lt.num("specific_heat", gt=0.0, **_limits("specific_heat"))
             kw["conductivity_temperature_coefficient"] = lt.num(
-                "conductivity_temperature_coefficient", 0.0, ge=-0.2, le=0.2
+                "conductivity_temperature_coefficient", 0.0, **_limits("conductivity_temperature_coefficient")
             )
             kw["conductivity_table"] = table
             if table is not None and kw["conductivity_temperature_coefficient"]:
@@ -101,9 +153,11 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None) -> Wall | No
                     lt.at("conductivity_table"),
                     "give either conductivity_table or conductivity_temperature_coefficient, not both",
                 )
-        kw["reference_temperature"] = lt.num("reference_temperature", 10.0, ge=-100.0, le=200.0)
-        kw["contact_resistance"] = lt.num("contact_resistance", 0.0, ge=0.0)
-        kw["vapour_resistance_factor"] = lt.num("vapour_resistance_factor", None, gt=0.0)
+        kw["reference_temperature"] = lt.num("reference_temperature", 10.0, **_limits("reference_temperature"))
+        kw["contact_resistance"] = lt.num("contact_resistance", 0.0, **_limits("contact_resistance"))
+        kw["vapour_resistance_factor"] = lt.num(
+            "vapour_resistance_factor", None, gt=0.0, **_limits("vapour_resistance_factor")
+        )
         material = lt.str("material", "")
         if (
             None in (lid, thickness)
@@ -133,7 +187,7 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None) -> Wall | No
         side = pt.str("side", None, choices=FACES)
         if name is not None:
             if name in names:
-                problems.add(pt.at("name"), f"probe {name!r} is defined twice")
+                problems.add(pt.at("name"), f"probe {show(name)} is defined twice")
             names.add(name)
         if name is None or depth is None:
             continue
@@ -154,13 +208,16 @@ def _parse_table(v, path, problems):
     if not isinstance(v, list) or len(v) < 2:
         problems.add(path, "must be a list of at least two [temperature_degC, conductivity] pairs")
         return None
+    if len(v) > MAX_TABLE_POINTS:
+        problems.add(path, f"{len(v):,} points, more than wallcal takes ({MAX_TABLE_POINTS})")
+        return None
     out = []
     for i, pair in enumerate(v):
         if not isinstance(pair, list) or len(pair) != 2:
             problems.add(f"{path}[{i}]", "must be a pair [temperature_degC, conductivity]")
             return None
-        tc = check_number(pair[0], f"{path}[{i}][0]", problems)
-        lam = check_number(pair[1], f"{path}[{i}][1]", problems, gt=0.0)
+        tc = check_number(pair[0], f"{path}[{i}][0]", problems, **_limits("table_temperature"))
+        lam = check_number(pair[1], f"{path}[{i}][1]", problems, gt=0.0, **_limits("conductivity"))
         if tc is None or lam is None:
             return None
         out.append((tc, lam))
@@ -170,13 +227,14 @@ def _parse_table(v, path, problems):
     return tuple(out)
 
 
-def load_wall(path: str | Path) -> Wall:
+def load_wall(path: str | Path, _chain: tuple[Path, ...] = ()) -> Wall:
     """Read a wall file (a TOML file with a ``[wall]`` table, or a study file).
 
     Raises
     ------
     StudyError
-        With every problem found.
+        With every problem found (:class:`WallFileCycle` when ``[wall] file`` references lead back to a
+        file being read).
     """
     path = Path(path)
     raw = read_toml(path)
@@ -184,7 +242,7 @@ def load_wall(path: str | Path) -> Wall:
     if "wall" not in raw:
         raise StudyError(["wall: required table, missing"], source=str(path))
     wt = Table(raw["wall"], "wall", problems, WALL_KEYS)
-    wall = parse_wall(wt, problems, path.parent)
+    wall = parse_wall(wt, problems, path.parent, _chain or (path.resolve(),))
     if problems:
         raise StudyError(problems, source=str(path))
     if wall is None:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import DataError, StudyError, closest
+from .errors import MAX_LINE, DataError, StudyError, clip, closest
 
 SIGMA = 5.670374419e-8  # Stefan-Boltzmann constant [W/(m2 K4)]
 #: EPW missing-value codes of the fields used (EnergyPlus Auxiliary Programs, "Data Field Descriptions")
@@ -111,14 +111,13 @@ def resolve_weather(weather: str, base_dir: Path | None = None) -> Path:
             ]
         )
     hint = closest(weather, shipped)
-    raise StudyError(
-        [
-            f"retrofit.weather: {weather!r} is neither a file next to the study nor a shipped weather file"
-            + (f" ({hint})" if hint.startswith("did you") else "")
-            + "; shipped: "
-            + ", ".join(shipped)
-        ]
-    )
+    head = f"retrofit.weather: {clip(weather, 40)!r} not found (neither next to the study nor shipped)"
+    if hint.startswith("did you"):
+        raise StudyError([f"{head}; {hint}"])
+    # one printed line of at most MAX_LINE characters ("wallcal: error: " included): the shipped names as far as
+    # they fit
+    head = f"retrofit.weather: {clip(weather, 40)!r} not found; shipped: "
+    raise StudyError([head + clip(", ".join(shipped), MAX_LINE - len("wallcal: error: ") - len(head))])
 
 
 def read_weather(path: str | Path) -> Weather:

@@ -63,7 +63,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..errors import EngineError
+from ..errors import EngineError, check_finite
 from ..grid import (
     LAMBDA_CONSTANT,
     LAMBDA_EXPONENTIAL,
@@ -492,7 +492,11 @@ class PreparedFD:
                 idx = np.flatnonzero([k == key for k in keys])
                 self._modal_group(per_candidate, idx, self._output_plan(key), want_k, out, tend)
         if not np.isfinite(tend).all():
-            raise EngineError("the modal eigen-decomposition failed (LAPACK's reduction or the QL); use path='general'")
+            raise EngineError(
+                "the modal eigen-decomposition failed: a layer is too thin or too "
+                "conductive next to massive ones; declare it massless with thermal_resistance (thickness / "
+                "conductivity), or use a shorter simulation.time_step or a smaller grid_constant"
+            )
         if n_d:
             inner = out[:, npr + 2 :: 2] + out[:, npr + 3 :: 2] + self._known_node_terms(dws, n_nodes)
             out = self._with_depth_rows(out[:, : npr + 2], inner)
@@ -666,6 +670,8 @@ class FDEngine(Engine):
         res = prepared.run_batch(batch.properties, depths, initial_state=initial_state, path=path, rows=rows)
         if not is_batch(walls):
             out = prepared.to_output(res, 0, elapsed=None)
+            wall = inp.wall if walls is None else walls
+            check_finite({**out.temperatures, **out.fluxes}, self.name, wall.nonfinite_cause())
             out.info["seconds"] = time.perf_counter() - t
             out.final_state = res.final_state[0]
             return out

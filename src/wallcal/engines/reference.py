@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..errors import EngineError
+from ..errors import EngineError, check_finite
 from ..grid import MIN_CONTACT_RESISTANCE, build_grid, refine_in_time, substeps
 from ..wall import Wall
 from .base import BOUNDARY_TYPES, Capabilities, Engine, EngineOutput, SimulationInput
@@ -248,6 +248,7 @@ class ReferenceEngine(Engine):
         out = self._output(inp, res, time.perf_counter() - t)
         for name, depth in inp.flux_depths:
             out.fluxes[name] = res.depth_fluxes[float(depth)]
+        check_finite({**out.temperatures, **out.fluxes}, self.name, wall.nonfinite_cause())
         return out
 
     def _output(self, inp: SimulationInput, res: ReferenceResult, seconds: float) -> EngineOutput:

@@ -272,7 +272,7 @@ def parse_retrofit(raw: Any, problems: Problems, base_dir: Path | None, wall: Wa
                         if bad not in LAYER_KEYS or bad == "id":
                             problems.add(f"{lp}.{bad}", f"unknown key; {closest(bad, LAYER_KEYS[1:])}")
                     if len(problems) == n_before:  # types and ranges now, on a stand-in layer; ids at run time
-                        _replaced(Layer(str(lid), 1.0, 1.0, 1.0, 1.0), changes, lp, problems)
+                        _replaced(Layer(str(lid), 1.0, 1.0, 1000.0, 1000.0), changes, lp, problems)
                     pairs.append((str(lid), dict(changes)))
                 replace = tuple(pairs)
         if name is None:

@@ -80,12 +80,11 @@ def sublayers(wall: Wall, max_r: float = MAX_SUBLAYER_R) -> Sublayers:
     """
     missing = [layer for layer in wall.layers if layer.vapour_resistance_factor is None]
     if missing:
-        names = ", ".join(repr(layer.id) + (f" ({layer.material})" if layer.material else "") for layer in missing)
+        names = ", ".join(repr(layer.id) for layer in missing)
         raise StudyError(
             [
-                f"layer{'s' if len(missing) > 1 else ''} {names}: vapour_resistance_factor (mu) is missing; the "
-                "ISO 13788 condensation check needs it on every layer (give it in [[wall.layers]] or the variant's "
-                "layer table, or set retrofit.condensation_check = false)"
+                f"layer{'s' if len(missing) > 1 else ''} {names}: vapour_resistance_factor (mu) is missing; "
+                "ISO 13788 needs it on every layer (or set retrofit.condensation_check = false)"
             ]
         )
     r, sd, ids, first = [], [], [], []
