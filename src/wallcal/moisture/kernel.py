@@ -1,0 +1,440 @@
+"""The numba kernel of the heat-and-moisture engine: implicit finite volumes, Newton, adaptive step.
+
+Unknowns per cell: temperature ``T`` [degC] and the moisture potential ``u = ln(pc)`` (see
+:mod:`wallcal.moisture.materials`). Backward Euler in time; each step is solved by Newton's method on the
+block-tridiagonal (2x2 blocks) system, whose Jacobian is assembled face by face from one-sided finite
+differences of the face fluxes. Balances per cell (per m2 of wall, ``dx`` the cell width)::
+
+    dx (w - w_old) / dt + G_e - G_w = 0                       moisture, G [kg/(m2 s)] towards +x
+    dx (E - E_old) / dt + Q_e - Q_w = 0                       energy,  E = (rho c_dry + c_w w) T
+
+with ``Q = -lambda dT/dx + h_v(T) g_v + c_w T g_l``: conduction plus the enthalpy the vapour and liquid
+fluxes carry (``h_v = 2.501e6 + 1870 T`` J/kg, so a vapour flux that condenses releases its latent heat).
+Both balances are conservative: what the boundaries let in over a run equals the stored change to the
+Newton tolerance, and the kernel returns the integrated boundary fluxes so that the caller can check it.
+
+Boundary array ``bc[side, k, col]`` at times ``tb[k]`` (linear in time, evaluated at the end of each step),
+``side`` 0 the exterior face (x = 0), 1 the interior face; ``kind[side]`` 0 imposes the surface state
+(``col 0`` T [degC], ``col 1`` u), 1 couples to air (``col 0`` air T, ``col 1`` air vapour pressure [Pa],
+``col 2`` heat transfer coefficient [W/(m2 K)], ``col 3`` vapour transfer coefficient [s/m], ``col 4`` liquid
+water supply (rain) [kg/(m2 s)], ``col 5`` further heat flux into the face [W/m2], e.g. absorbed solar minus
+long-wave loss). The rain the surface cannot take up (the flux that would bring the face to saturation,
+``pc = 1 Pa``) runs off and is returned.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import inner, kernel
+from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_MIN
+
+H_V0 = 2.501e6  # J/kg, latent heat at 0 degC
+C_VAP = 1870.0  # J/(kg K)
+HALF = 0.5
+
+NB_COLS = 6
+
+
+@inner()
+def interp(tab, m, u):
+    """Table value and slope at ``u`` (linear; extrapolated with the end segments)."""
+    s = (u - U_MIN) / DU
+    i = int(math.floor(s))
+    if i < 0:
+        i = 0
+    elif i > N_TABLE - 2:
+        i = N_TABLE - 2
+    f = s - i
+    a = tab[m, i]
+    b = tab[m, i + 1]
+    return a + (b - a) * f, (b - a) / DU
+
+
+@inner()
+def psat(t):
+    if t >= 0.0:
+        return 610.5 * math.exp(17.269 * t / (237.3 + t))
+    return 610.5 * math.exp(21.875 * t / (265.5 + t))
+
+
+@inner()
+def vapour_pressure(t, u):
+    return math.exp(-math.exp(u) / KELVIN) * psat(t)
+
+
+@inner()
+def node_props(t, u, m, tw, td, thermal):
+    """``(w, lambda, delta_p, p_v)`` of a cell."""
+    w, _ = interp(tw, m, u)
+    lam = thermal[m, 0] + thermal[m, 1] * w
+    d, _ = interp(td, m, u)
+    d = d * T_REF / (t + 273.15)
+    return w, lam, d, vapour_pressure(t, u)
+
+
+@inner()
+def face_flux(ti, ui, mi, dxi, tj, uj, mj, dxj, tw, tk, td, thermal):
+    """Moisture and energy flux ``(G, Q)`` from cell i to cell j (j on the +x side)."""
+    wi, li, di, pi = node_props(ti, ui, mi, tw, td, thermal)
+    wj, lj, dj, pj = node_props(tj, uj, mj, tw, td, thermal)
+    q = (ti - tj) / (HALF * dxi / li + HALF * dxj / lj)
+    gv = 0.0
+    if di > 0.0 and dj > 0.0:
+        gv = (pi - pj) / (HALF * dxi / di + HALF * dxj / dj)
+    gl = 0.0
+    if mi == mj:
+        a, _ = interp(tk, mi, ui)
+        b, _ = interp(tk, mi, uj)
+        gl = (b - a) / (HALF * (dxi + dxj))
+    else:
+        pci = math.exp(ui)
+        pcj = math.exp(uj)
+        ai, si = interp(tk, mi, ui)
+        bj, sj = interp(tk, mj, uj)
+        if abs(uj - ui) > 1e-6:
+            aj, _ = interp(tk, mi, uj)
+            bi, _ = interp(tk, mj, ui)
+            ka = (aj - ai) / (pcj - pci)
+            kb = (bj - bi) / (pcj - pci)
+        else:
+            ka = si / pci
+            kb = sj / pcj
+        if ka > 0.0 and kb > 0.0:
+            gl = (pcj - pci) / (HALF * dxi / ka + HALF * dxj / kb)
+    tf = HALF * (ti + tj)
+    return gv + gl, q + gv * (H_V0 + C_VAP * tf) + gl * C_WATER * tf
+
+
+@inner()
+def boundary_flux(kind, b, t, u, m, dx, tw, tk, td, thermal):
+    """Moisture and energy flux into the wall through one face, and the rain that runs off."""
+    w, lam, d, pv = node_props(t, u, m, tw, td, thermal)
+    half = HALF * dx
+    if kind == 0:
+        ts = b[0]
+        us = b[1]
+        q = lam / half * (ts - t)
+        gv = d / half * (vapour_pressure(ts, us) - pv)
+        phi_n, _ = interp(tk, m, u)
+        phi_s, _ = interp(tk, m, us)
+        gl = (phi_n - phi_s) / half
+        tf = HALF * (ts + t)
+        return gv + gl, q + gv * (H_V0 + C_VAP * tf) + gl * C_WATER * tf, 0.0
+    ta = b[0]
+    q = 0.0
+    if b[2] > 0.0:
+        q = (ta - t) / (1.0 / b[2] + half / lam)
+    gv = 0.0
+    if b[3] > 0.0 and d > 0.0:
+        gv = (b[1] - pv) / (1.0 / b[3] + half / d)
+    gl = 0.0
+    runoff = 0.0
+    if b[4] > 0.0:
+        phi_n, _ = interp(tk, m, u)
+        phi_sat, _ = interp(tk, m, U_MIN)
+        gmax = (phi_n - phi_sat) / half
+        if gmax < 0.0:
+            gmax = 0.0
+        gl = min(b[4], gmax)
+        runoff = b[4] - gl
+    return gv + gl, q + b[5] + gv * (H_V0 + C_VAP * t) + gl * C_WATER * ta, runoff
+
+
+@inner()
+def bc_at(bc, tb, side, time, out):
+    n = tb.shape[0]
+    if n == 1 or time <= tb[0]:
+        for c in range(NB_COLS):
+            out[c] = bc[side, 0, c]
+        return
+    if time >= tb[n - 1]:
+        for c in range(NB_COLS):
+            out[c] = bc[side, n - 1, c]
+        return
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if tb[mid] <= time:
+            lo = mid
+        else:
+            hi = mid
+    f = (time - tb[lo]) / (tb[hi] - tb[lo])
+    for c in range(NB_COLS):
+        out[c] = bc[side, lo, c] * (1.0 - f) + bc[side, hi, c] * f
+
+
+@inner()
+def storage(t, u, m, tw, thermal):
+    """Moisture ``w`` [kg/m3] and energy ``E`` [J/m3] of a cell, with dw/du."""
+    w, dw = interp(tw, m, u)
+    return w, (thermal[m, 2] + C_WATER * w) * t, dw
+
+
+@inner()
+def solve_block(lo, di, up, r, n, x, dp, rp):
+    """Block-tridiagonal (2x2) solve: lo[i] couples row i to i-1, up[i] to i+1. Returns False if singular."""
+    for i in range(n):
+        a = di[i, 0, 0]
+        b = di[i, 0, 1]
+        c = di[i, 1, 0]
+        d = di[i, 1, 1]
+        r0 = r[i, 0]
+        r1 = r[i, 1]
+        if i > 0:
+            # m = lo[i] inv(dp[i-1])
+            e = dp[i - 1, 0, 0]
+            f = dp[i - 1, 0, 1]
+            g = dp[i - 1, 1, 0]
+            h = dp[i - 1, 1, 1]
+            det = e * h - f * g
+            if det == 0.0 or not math.isfinite(det):
+                return False
+            i00 = h / det
+            i01 = -f / det
+            i10 = -g / det
+            i11 = e / det
+            l00 = lo[i, 0, 0]
+            l01 = lo[i, 0, 1]
+            l10 = lo[i, 1, 0]
+            l11 = lo[i, 1, 1]
+            m00 = l00 * i00 + l01 * i10
+            m01 = l00 * i01 + l01 * i11
+            m10 = l10 * i00 + l11 * i10
+            m11 = l10 * i01 + l11 * i11
+            u00 = up[i - 1, 0, 0]
+            u01 = up[i - 1, 0, 1]
+            u10 = up[i - 1, 1, 0]
+            u11 = up[i - 1, 1, 1]
+            a -= m00 * u00 + m01 * u10
+            b -= m00 * u01 + m01 * u11
+            c -= m10 * u00 + m11 * u10
+            d -= m10 * u01 + m11 * u11
+            r0 -= m00 * rp[i - 1, 0] + m01 * rp[i - 1, 1]
+            r1 -= m10 * rp[i - 1, 0] + m11 * rp[i - 1, 1]
+        dp[i, 0, 0] = a
+        dp[i, 0, 1] = b
+        dp[i, 1, 0] = c
+        dp[i, 1, 1] = d
+        rp[i, 0] = r0
+        rp[i, 1] = r1
+    for i in range(n - 1, -1, -1):
+        r0 = rp[i, 0]
+        r1 = rp[i, 1]
+        if i < n - 1:
+            r0 -= up[i, 0, 0] * x[i + 1, 0] + up[i, 0, 1] * x[i + 1, 1]
+            r1 -= up[i, 1, 0] * x[i + 1, 0] + up[i, 1, 1] * x[i + 1, 1]
+        a = dp[i, 0, 0]
+        b = dp[i, 0, 1]
+        c = dp[i, 1, 0]
+        d = dp[i, 1, 1]
+        det = a * d - b * c
+        if det == 0.0 or not math.isfinite(det):
+            return False
+        x[i, 0] = (d * r0 - b * r1) / det
+        x[i, 1] = (a * r1 - c * r0) / det
+    return True
+
+
+@kernel
+def run_ham(
+    tw, tk, td, thermal, mat, dx, kind, tb, bc, t0, u0, t_out, dt_first, dt_max, tol_t, tol_u, max_iter, dt_min
+):
+    """Integrate from time 0 to ``t_out[-1]``; states at each ``t_out``.
+
+    Returns ``(T_out, u_out, flux_out, stats, status)``: ``flux_out[k, side, 0:3]`` the moisture [kg/m2]
+    and energy [J/m2] let in through each face and the rain run off [kg/m2] from time 0 to ``t_out[k]``;
+    ``stats`` = steps, Newton iterations, rejected steps; ``status`` 0 when done, 1 when the step fell
+    below ``dt_min`` (the time reached is the last ``t_out`` filled).
+    """
+    n = dx.shape[0]
+    n_out = t_out.shape[0]
+    t_res = np.empty((n_out, n))
+    u_res = np.empty((n_out, n))
+    flux_out = np.zeros((n_out, 2, 3))
+    stats = np.zeros(3, dtype=np.int64)
+    tc = t0.copy()
+    uc = u0.copy()
+    tn = np.empty(n)
+    un = np.empty(n)
+    w_old = np.empty(n)
+    e_old = np.empty(n)
+    for i in range(n):
+        w, e, _ = storage(tc[i], uc[i], mat[i], tw, thermal)
+        w_old[i] = w
+        e_old[i] = e
+    lo = np.zeros((n, 2, 2))
+    di = np.zeros((n, 2, 2))
+    up = np.zeros((n, 2, 2))
+    res = np.zeros((n, 2))
+    x = np.zeros((n, 2))
+    dp = np.zeros((n, 2, 2))
+    rp = np.zeros((n, 2))
+    b_l = np.empty(NB_COLS)
+    b_r = np.empty(NB_COLS)
+    cum = np.zeros((2, 3))
+    time = 0.0
+    k = 0
+    while k < n_out and t_out[k] <= 0.0:
+        t_res[k, :] = tc
+        u_res[k, :] = uc
+        k += 1
+    dt = dt_first
+    ht = 1e-6
+    hu = 1e-7
+    while k < n_out:
+        step = min(dt, t_out[k] - time)
+        last = step >= t_out[k] - time
+        tnew = time + step
+        bc_at(bc, tb, 0, tnew, b_l)
+        bc_at(bc, tb, 1, tnew, b_r)
+        for i in range(n):
+            tn[i] = tc[i]
+            un[i] = uc[i]
+        converged = False
+        it = 0
+        while it < max_iter:
+            it += 1
+            for i in range(n):
+                w, e, dw = storage(tn[i], un[i], mat[i], tw, thermal)
+                res[i, 0] = dx[i] * (w - w_old[i]) / step
+                res[i, 1] = dx[i] * (e - e_old[i]) / step
+                lo[i, :, :] = 0.0
+                up[i, :, :] = 0.0
+                di[i, 0, 0] = 0.0
+                di[i, 0, 1] = dx[i] * dw / step
+                di[i, 1, 0] = dx[i] * (thermal[mat[i], 2] + C_WATER * w) / step
+                di[i, 1, 1] = dx[i] * C_WATER * tn[i] * dw / step
+            # interior faces
+            for f in range(1, n):
+                i = f - 1
+                j = f
+                g0, q0 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
+                res[i, 0] += g0
+                res[i, 1] += q0
+                res[j, 0] -= g0
+                res[j, 1] -= q0
+                g1, q1 = face_flux(
+                    tn[i] + ht, un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
+                )
+                g2, q2 = face_flux(
+                    tn[i], un[i] + hu, mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
+                )
+                g3, q3 = face_flux(
+                    tn[i], un[i], mat[i], dx[i], tn[j] + ht, un[j], mat[j], dx[j], tw, tk, td, thermal
+                )
+                g4, q4 = face_flux(
+                    tn[i], un[i], mat[i], dx[i], tn[j], un[j] + hu, mat[j], dx[j], tw, tk, td, thermal
+                )
+                a00 = (g1 - g0) / ht
+                a01 = (g2 - g0) / hu
+                a10 = (q1 - q0) / ht
+                a11 = (q2 - q0) / hu
+                b00 = (g3 - g0) / ht
+                b01 = (g4 - g0) / hu
+                b10 = (q3 - q0) / ht
+                b11 = (q4 - q0) / hu
+                di[i, 0, 0] += a00
+                di[i, 0, 1] += a01
+                di[i, 1, 0] += a10
+                di[i, 1, 1] += a11
+                up[i, 0, 0] += b00
+                up[i, 0, 1] += b01
+                up[i, 1, 0] += b10
+                up[i, 1, 1] += b11
+                lo[j, 0, 0] -= a00
+                lo[j, 0, 1] -= a01
+                lo[j, 1, 0] -= a10
+                lo[j, 1, 1] -= a11
+                di[j, 0, 0] -= b00
+                di[j, 0, 1] -= b01
+                di[j, 1, 0] -= b10
+                di[j, 1, 1] -= b11
+            # boundaries: the residual loses what flows in
+            for side in range(2):
+                i = 0 if side == 0 else n - 1
+                b = b_l if side == 0 else b_r
+                g0, q0, _ = boundary_flux(kind[side], b, tn[i], un[i], mat[i], dx[i], tw, tk, td, thermal)
+                g1, q1, _ = boundary_flux(kind[side], b, tn[i] + ht, un[i], mat[i], dx[i], tw, tk, td, thermal)
+                g2, q2, _ = boundary_flux(kind[side], b, tn[i], un[i] + hu, mat[i], dx[i], tw, tk, td, thermal)
+                res[i, 0] -= g0
+                res[i, 1] -= q0
+                di[i, 0, 0] -= (g1 - g0) / ht
+                di[i, 0, 1] -= (g2 - g0) / hu
+                di[i, 1, 0] -= (q1 - q0) / ht
+                di[i, 1, 1] -= (q2 - q0) / hu
+            for i in range(n):
+                res[i, 0] = -res[i, 0]
+                res[i, 1] = -res[i, 1]
+            if not solve_block(lo, di, up, res, n, x, dp, rp):
+                break
+            big_t = 0.0
+            big_u = 0.0
+            finite = True
+            for i in range(n):
+                if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
+                    finite = False
+                    break
+                big_t = max(big_t, abs(x[i, 0]))
+                big_u = max(big_u, abs(x[i, 1]))
+            if not finite:
+                break
+            damp = 1.0
+            if big_t > 10.0:
+                damp = 10.0 / big_t
+            if big_u * damp > 2.0:
+                damp = 2.0 / big_u
+            for i in range(n):
+                tn[i] += damp * x[i, 0]
+                un[i] += damp * x[i, 1]
+            if damp == 1.0 and big_t < tol_t and big_u < tol_u:
+                converged = True
+                break
+        stats[1] += it
+        if not converged:
+            stats[2] += 1
+            dt = step / 4.0
+            if dt < dt_min:
+                return t_res, u_res, flux_out, stats, 1
+            continue
+        # accept: integrate the boundary fluxes at the new state
+        for side in range(2):
+            i = 0 if side == 0 else n - 1
+            b = b_l if side == 0 else b_r
+            g0, q0, ro = boundary_flux(kind[side], b, tn[i], un[i], mat[i], dx[i], tw, tk, td, thermal)
+            cum[side, 0] += g0 * step
+            cum[side, 1] += q0 * step
+            cum[side, 2] += ro * step
+        big_t = 0.0
+        big_u = 0.0
+        for i in range(n):
+            big_t = max(big_t, abs(tn[i] - tc[i]))
+            big_u = max(big_u, abs(un[i] - uc[i]))
+            tc[i] = tn[i]
+            uc[i] = un[i]
+            w, e, _ = storage(tc[i], uc[i], mat[i], tw, thermal)
+            w_old[i] = w
+            e_old[i] = e
+        time = tnew
+        stats[0] += 1
+        if last:
+            time = t_out[k]
+            t_res[k, :] = tc
+            u_res[k, :] = uc
+            flux_out[k, :, :] = cum
+            k += 1
+        # next step: by the change of this one (targets 2 K and 0.2 in ln pc) and the Newton effort
+        grow = 2.0
+        if big_t > 0.0:
+            grow = min(grow, 2.0 / big_t)
+        if big_u > 0.0:
+            grow = min(grow, 0.2 / big_u)
+        if it > 5:
+            grow = min(grow, 0.7)
+        grow = max(grow, 0.5)
+        if not last or step >= dt:
+            dt = min(step * grow, dt_max)
+    return t_res, u_res, flux_out, stats, 0
