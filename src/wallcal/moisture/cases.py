@@ -136,7 +136,8 @@ def _profile_at(result: HamResult, k: int, x: float, values: np.ndarray) -> floa
 def _balance_rows(name: str, result: HamResult, days: np.ndarray) -> list[dict]:
     rows = []
     for k, d in enumerate(days):
-        for q, err in (("mass_balance_error", result.mass_balance_error), ("energy_balance_error", result.energy_balance_error)):
+        errors = (("mass_balance_error", result.mass_balance_error), ("energy_balance_error", result.energy_balance_error))
+        for q, err in errors:
             rows.append(
                 {
                     "case": name,
@@ -175,7 +176,7 @@ def hamstad2(days: list[float] | None = None) -> CaseRun:
     res = solve(grid, ext, inn, 20.0, 0.95, [h * HOUR for h in hours], dt_first=1.0, dt_max=1800.0)
     rows = []
     for k, h in enumerate(hours):
-        for x, w_ref in zip(ref["x_m"], ref[f"w_{int(h)}h"]):
+        for x, w_ref in zip(ref["x_m"], ref[f"w_{int(h)}h"], strict=True):
             if x <= 0 or x >= 0.2:  # the faces are the boundary values, not cells
                 continue
             v = _profile_at(res, k, x, res.water_content)
