@@ -136,8 +136,8 @@ def _profile_at(result: HamResult, k: int, x: float, values: np.ndarray) -> floa
 def _balance_rows(name: str, result: HamResult, days: np.ndarray) -> list[dict]:
     rows = []
     for k, d in enumerate(days):
-        errors = (("mass_balance_error", result.mass_balance_error), ("energy_balance_error", result.energy_balance_error))
-        for q, err in errors:
+        for q in ("mass_balance_error", "energy_balance_error"):
+            err = getattr(result, q)
             rows.append(
                 {
                     "case": name,
@@ -181,8 +181,15 @@ def hamstad2(days: list[float] | None = None) -> CaseRun:
                 continue
             v = _profile_at(res, k, x, res.water_content)
             rows.append(
-                {"case": "hamstad2", "quantity": "water_content", "day": h / 24.0, "x_m": x, "value": v,
-                 "lower": w_ref - 1.0, "upper": w_ref + 1.0}
+                {
+                    "case": "hamstad2",
+                    "quantity": "water_content",
+                    "day": h / 24.0,
+                    "x_m": x,
+                    "value": v,
+                    "lower": w_ref - 1.0,
+                    "upper": w_ref + 1.0,
+                }
             )
     rows += _balance_rows("hamstad2", res, np.array(hours) / 24.0)
     return _finish("hamstad2", rows, res, start)
@@ -202,15 +209,27 @@ def en15026(days: list[float] | None = None) -> CaseRun:
     for k, d in enumerate(days):
         for _, r in t1[t1["day"] == d].iterrows():
             rows.append(
-                {"case": "en15026", "quantity": "water_content", "day": d, "x_m": r["x_m"],
-                 "value": _profile_at(res, k, r["x_m"], res.water_content),
-                 "lower": r["w_min_kg_m3"], "upper": r["w_max_kg_m3"]}
+                {
+                    "case": "en15026",
+                    "quantity": "water_content",
+                    "day": d,
+                    "x_m": r["x_m"],
+                    "value": _profile_at(res, k, r["x_m"], res.water_content),
+                    "lower": r["w_min_kg_m3"],
+                    "upper": r["w_max_kg_m3"],
+                }
             )
         for _, r in t2[t2["day"] == d].iterrows():
             rows.append(
-                {"case": "en15026", "quantity": "temperature", "day": d, "x_m": r["x_m"],
-                 "value": _profile_at(res, k, r["x_m"], res.temperature),
-                 "lower": r["T_min_C"], "upper": r["T_max_C"]}
+                {
+                    "case": "en15026",
+                    "quantity": "temperature",
+                    "day": d,
+                    "x_m": r["x_m"],
+                    "value": _profile_at(res, k, r["x_m"], res.temperature),
+                    "lower": r["T_min_C"],
+                    "upper": r["T_max_C"],
+                }
             )
     rows += _balance_rows("en15026", res, np.array(days))
     return _finish("en15026", rows, res, start)

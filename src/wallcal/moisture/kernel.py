@@ -317,18 +317,10 @@ def run_ham(
                 res[i, 1] += q0
                 res[j, 0] -= g0
                 res[j, 1] -= q0
-                g1, q1 = face_flux(
-                    tn[i] + ht, un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
-                )
-                g2, q2 = face_flux(
-                    tn[i], un[i] + hu, mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
-                )
-                g3, q3 = face_flux(
-                    tn[i], un[i], mat[i], dx[i], tn[j] + ht, un[j], mat[j], dx[j], tw, tk, td, thermal
-                )
-                g4, q4 = face_flux(
-                    tn[i], un[i], mat[i], dx[i], tn[j], un[j] + hu, mat[j], dx[j], tw, tk, td, thermal
-                )
+                g1, q1 = face_flux(tn[i] + ht, un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
+                g2, q2 = face_flux(tn[i], un[i] + hu, mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
+                g3, q3 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j] + ht, un[j], mat[j], dx[j], tw, tk, td, thermal)
+                g4, q4 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j], un[j] + hu, mat[j], dx[j], tw, tk, td, thermal)
                 a00 = (g1 - g0) / ht
                 a01 = (g2 - g0) / hu
                 a10 = (q1 - q0) / ht

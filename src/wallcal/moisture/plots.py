@@ -29,8 +29,14 @@ def plot_case(run: CaseRun, path) -> str:
         if len(r):
             mid = 0.5 * (r["lower"] + r["upper"])
             ax.errorbar(
-                r["x_m"] * 1000.0, mid, yerr=0.5 * (r["upper"] - r["lower"]), fmt="none", ecolor="k", capsize=3,
-                lw=0.8, label="reference limits",
+                r["x_m"] * 1000.0,
+                mid,
+                yerr=0.5 * (r["upper"] - r["lower"]),
+                fmt="none",
+                ecolor="k",
+                capsize=3,
+                lw=0.8,
+                label="reference limits",
             )
     if run.name == "en15026":
         axes[0].set_xlim(0, 5200)
