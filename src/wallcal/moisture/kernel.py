@@ -76,6 +76,86 @@ def node_props(t, u, m, tw, td, thermal):
 
 
 @inner()
+def dpsat_dt(t):
+    if t >= 0.0:
+        return psat(t) * 17.269 * 237.3 / ((237.3 + t) * (237.3 + t))
+    return psat(t) * 21.875 * 265.5 / ((265.5 + t) * (265.5 + t))
+
+
+@inner()
+def cell_props(t, u, m, tw, tk, td, thermal, out):
+    """A cell's properties and their derivatives, into ``out``: 0 w, 1 dw/du, 2 lambda, 3 dlambda/du,
+    4 delta_p, 5 ddelta/dT, 6 ddelta/du, 7 p_v, 8 dp_v/dT, 9 dp_v/du, 10 Phi, 11 dPhi/du."""
+    w, dw = interp(tw, m, u)
+    out[0] = w
+    out[1] = dw
+    out[2] = thermal[m, 0] + thermal[m, 1] * w
+    out[3] = thermal[m, 1] * dw
+    d, dd = interp(td, m, u)
+    tk_ = t + 273.15
+    out[4] = d * T_REF / tk_
+    out[5] = -out[4] / tk_
+    out[6] = dd * T_REF / tk_
+    pc = math.exp(u)
+    phi = math.exp(-pc / KELVIN)
+    ps = psat(t)
+    out[7] = phi * ps
+    out[8] = phi * dpsat_dt(t)
+    out[9] = -out[7] * pc / KELVIN
+    k, dk = interp(tk, m, u)
+    out[10] = k
+    out[11] = dk
+
+
+@inner()
+def face_flux_same(ti, pi, dxi, tj, pj, dxj, jac):
+    """Flux ``(G, Q)`` between two cells of one material from their properties ``pi``, ``pj``
+    (:func:`cell_props`), and its derivatives into ``jac[0:2, 0:4]`` (rows G, Q; columns Ti, ui, Tj, uj)."""
+    a = HALF * dxi
+    b = HALF * dxj
+    # conduction
+    rh = a / pi[2] + b / pj[2]
+    q = (ti - tj) / rh
+    q_ti = 1.0 / rh
+    q_tj = -1.0 / rh
+    q_ui = q / rh * a / (pi[2] * pi[2]) * pi[3]
+    q_uj = q / rh * b / (pj[2] * pj[2]) * pj[3]
+    # vapour
+    gv = 0.0
+    gv_ti = 0.0
+    gv_ui = 0.0
+    gv_tj = 0.0
+    gv_uj = 0.0
+    if pi[4] > 0.0 and pj[4] > 0.0:
+        rv = a / pi[4] + b / pj[4]
+        dpv = pi[7] - pj[7]
+        gv = dpv / rv
+        ci = gv / rv * a / (pi[4] * pi[4])
+        cj = gv / rv * b / (pj[4] * pj[4])
+        gv_ti = pi[8] / rv + ci * pi[5]
+        gv_ui = pi[9] / rv + ci * pi[6]
+        gv_tj = -pj[8] / rv + cj * pj[5]
+        gv_uj = -pj[9] / rv + cj * pj[6]
+    # liquid (Kirchhoff)
+    dist = a + b
+    gl = (pj[10] - pi[10]) / dist
+    gl_ui = -pi[11] / dist
+    gl_uj = pj[11] / dist
+    tf = HALF * (ti + tj)
+    hv = H_V0 + C_VAP * tf
+    hl = C_WATER * tf
+    jac[0, 0] = gv_ti
+    jac[0, 1] = gv_ui + gl_ui
+    jac[0, 2] = gv_tj
+    jac[0, 3] = gv_uj + gl_uj
+    jac[1, 0] = q_ti + gv_ti * hv + HALF * C_VAP * gv + HALF * C_WATER * gl
+    jac[1, 1] = q_ui + gv_ui * hv + gl_ui * hl
+    jac[1, 2] = q_tj + gv_tj * hv + HALF * C_VAP * gv + HALF * C_WATER * gl
+    jac[1, 3] = q_uj + gv_uj * hv + gl_uj * hl
+    return gv + gl, q + gv * hv + gl * hl
+
+
+@inner()
 def face_flux(ti, ui, mi, dxi, tj, uj, mj, dxj, tw, tk, td, thermal):
     """Moisture and energy flux ``(G, Q)`` from cell i to cell j (j on the +x side)."""
     wi, li, di, pi = node_props(ti, ui, mi, tw, td, thermal)
@@ -259,6 +339,9 @@ def run_ham(
     tc = t0.copy()
     uc = u0.copy()
     tn = np.empty(n)
+    rate_t = np.zeros(n)
+    rate_u = np.zeros(n)
+    prev_step = 0.0
     un = np.empty(n)
     w_old = np.empty(n)
     e_old = np.empty(n)
@@ -273,6 +356,8 @@ def run_ham(
     x = np.zeros((n, 2))
     dp = np.zeros((n, 2, 2))
     rp = np.zeros((n, 2))
+    props = np.empty((n, 12))
+    jac = np.empty((2, 4))
     b_l = np.empty(NB_COLS)
     b_r = np.empty(NB_COLS)
     cum = np.zeros((2, 3))
@@ -291,9 +376,11 @@ def run_ham(
         tnew = time + step
         bc_at(bc, tb, 0, tnew, b_l)
         bc_at(bc, tb, 1, tnew, b_r)
+        # initial guess: the last step's rate of change carried on (the last state after a rejection)
+        ratio = step / prev_step if prev_step > 0.0 else 0.0
         for i in range(n):
-            tn[i] = tc[i]
-            un[i] = uc[i]
+            tn[i] = tc[i] + ratio * rate_t[i]
+            un[i] = uc[i] + ratio * rate_u[i]
         converged = False
         it = 0
         while it < max_iter:
@@ -309,26 +396,47 @@ def run_ham(
                 di[i, 1, 0] = dx[i] * (thermal[mat[i], 2] + C_WATER * w) / step
                 di[i, 1, 1] = dx[i] * C_WATER * tn[i] * dw / step
             # interior faces
+            for i in range(n):
+                cell_props(tn[i], un[i], mat[i], tw, tk, td, thermal, props[i])
             for f in range(1, n):
                 i = f - 1
                 j = f
-                g0, q0 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
+                if mat[i] == mat[j]:
+                    g0, q0 = face_flux_same(tn[i], props[i], dx[i], tn[j], props[j], dx[j], jac)
+                    a00 = jac[0, 0]
+                    a01 = jac[0, 1]
+                    a10 = jac[1, 0]
+                    a11 = jac[1, 1]
+                    b00 = jac[0, 2]
+                    b01 = jac[0, 3]
+                    b10 = jac[1, 2]
+                    b11 = jac[1, 3]
+                else:
+                    g0, q0 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
+                    g1, q1 = face_flux(
+                        tn[i] + ht, un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
+                    )
+                    g2, q2 = face_flux(
+                        tn[i], un[i] + hu, mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
+                    )
+                    g3, q3 = face_flux(
+                        tn[i], un[i], mat[i], dx[i], tn[j] + ht, un[j], mat[j], dx[j], tw, tk, td, thermal
+                    )
+                    g4, q4 = face_flux(
+                        tn[i], un[i], mat[i], dx[i], tn[j], un[j] + hu, mat[j], dx[j], tw, tk, td, thermal
+                    )
+                    a00 = (g1 - g0) / ht
+                    a01 = (g2 - g0) / hu
+                    a10 = (q1 - q0) / ht
+                    a11 = (q2 - q0) / hu
+                    b00 = (g3 - g0) / ht
+                    b01 = (g4 - g0) / hu
+                    b10 = (q3 - q0) / ht
+                    b11 = (q4 - q0) / hu
                 res[i, 0] += g0
                 res[i, 1] += q0
                 res[j, 0] -= g0
                 res[j, 1] -= q0
-                g1, q1 = face_flux(tn[i] + ht, un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
-                g2, q2 = face_flux(tn[i], un[i] + hu, mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
-                g3, q3 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j] + ht, un[j], mat[j], dx[j], tw, tk, td, thermal)
-                g4, q4 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j], un[j] + hu, mat[j], dx[j], tw, tk, td, thermal)
-                a00 = (g1 - g0) / ht
-                a01 = (g2 - g0) / hu
-                a10 = (q1 - q0) / ht
-                a11 = (q2 - q0) / hu
-                b00 = (g3 - g0) / ht
-                b01 = (g4 - g0) / hu
-                b10 = (q3 - q0) / ht
-                b11 = (q4 - q0) / hu
                 di[i, 0, 0] += a00
                 di[i, 0, 1] += a01
                 di[i, 1, 0] += a10
@@ -388,6 +496,7 @@ def run_ham(
         stats[1] += it
         if not converged:
             stats[2] += 1
+            prev_step = 0.0
             dt = step / 4.0
             if dt < dt_min:
                 return t_res, u_res, flux_out, stats, 1
@@ -405,12 +514,15 @@ def run_ham(
         for i in range(n):
             big_t = max(big_t, abs(tn[i] - tc[i]))
             big_u = max(big_u, abs(un[i] - uc[i]))
+            rate_t[i] = tn[i] - tc[i]
+            rate_u[i] = un[i] - uc[i]
             tc[i] = tn[i]
             uc[i] = un[i]
             w, e, _ = storage(tc[i], uc[i], mat[i], tw, thermal)
             w_old[i] = w
             e_old[i] = e
         time = tnew
+        prev_step = step
         stats[0] += 1
         if last:
             time = t_out[k]
