@@ -139,6 +139,17 @@ def test_en15026_annex_a_every_cell_inside_its_limits():
     _assert_all_pass(run)
 
 
+def test_hamstad5_lies_inside_the_participants_envelope_at_60_days():
+    run = cases.run_case("hamstad5")
+    profile = run.checks[run.checks["x_m"].notna()]
+    assert set(profile["quantity"]) == {"water_content", "relative_humidity"}
+    assert len(profile) == 2 * 144  # every position where at least five of the six codes report
+    _assert_all_pass(run)
+    # the moisture gathers behind the insulation: the peak is in the insulation next to the mortar
+    w = run.result.water_content[-1]
+    assert 0.380 < run.result.x[np.argmax(w)] < 0.382 and 55 < w.max() < 65
+
+
 def test_en15026_with_a_scalar_resistance_factor_fails_table_a1():
     """The limits are tight enough to catch a physics error: mu = 200 instead of mu(w) (setup.md: a scalar mu
     cannot pass Table A.1) puts day 30, x = 0.01 m above its 85.3 kg/m3."""

@@ -24,7 +24,7 @@ def plot_case(run: CaseRun, path) -> str:
         axes[1].plot(x_mm, res.relative_humidity[k], lw=1.2, label=label)
         axes[2].plot(x_mm, res.water_content[k], lw=1.2, label=label)
     ref = run.checks[run.checks["x_m"].notna()]
-    for q, ax in (("temperature", axes[0]), ("water_content", axes[2])):
+    for q, ax in (("temperature", axes[0]), ("relative_humidity", axes[1]), ("water_content", axes[2])):
         r = ref[ref["quantity"] == q]
         if len(r):
             mid = 0.5 * (r["lower"] + r["upper"])
@@ -45,6 +45,9 @@ def plot_case(run: CaseRun, path) -> str:
     else:
         for ax in axes:
             ax.set_xlim(0, x_mm[-1] + 0.5 * res.dx[-1] * 1000.0)
+    if run.name == "hamstad5":  # the moisture gathers at the mortar and insulation
+        axes[1].set_xlim(340, 420)
+        axes[2].set_xlim(340, 420)
     for ax, lab in zip(axes, ("temperature [degC]", "relative humidity [-]", "water content [kg/m3]"), strict=True):
         ax.set_xlabel("depth from the exterior face [mm]")
         ax.set_ylabel(lab)
