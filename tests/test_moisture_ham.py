@@ -117,6 +117,53 @@ def test_heat_alone_reaches_the_steady_conduction_profile():
     assert np.allclose(res.temperature[-1], 20.0 * grid.x / 0.05, atol=0.05)
 
 
+def test_temperature_dependent_conductivity_gives_the_kirchhoff_steady_profile():
+    """lambda = l0 + lt T: in steady state l0 T + lt T^2 / 2 is linear in x."""
+    m = cases.hamstad2_material()
+    hot = HygricMaterial("lambda(T)", m.storage, 0.15, 4.2e5, lambda_t=0.01, vapour_permeability=1e-15)
+    grid = make_grid([Layer(hot, 0.05)], first=1e-3, ratio=1.0, max_cell=1e-3)
+    res = solve(
+        grid, Boundary("surface", 0.0, 0.5), Boundary("surface", 40.0, 0.5), 20.0, 0.5, [60 * 86400.0], dt_max=3600.0
+    )
+    kirchhoff = 0.15 * res.temperature[-1] + 0.005 * res.temperature[-1] ** 2
+    expected = (0.15 * 40 + 0.005 * 1600) * grid.x / 0.05
+    assert np.allclose(kirchhoff, expected, atol=1e-3 * expected.max())
+    assert not np.allclose(res.temperature[-1], 40 * grid.x / 0.05, atol=0.5)  # lambda(T) mattered
+
+
+def test_an_initial_water_content_profile_is_kept_at_time_zero():
+    brick, mortar, insulation = cases.hamstad5_materials()
+    grid = make_grid([Layer(brick, 0.05), Layer(insulation, 0.04)], first=1e-3, ratio=1.2)
+    w0 = np.where(grid.x < 0.05, np.linspace(5.0, 50.0, grid.x.size), 3.0)
+    res = solve(
+        grid,
+        Boundary("air", 5.0, 0.8, h=25.0, beta=2e-7),
+        Boundary("air", 20.0, 0.5, h=8.0),
+        np.linspace(5.0, 20.0, grid.x.size),
+        output_times=[0.0, 3600.0],
+        initial_water_content=w0,
+    )
+    assert np.allclose(res.water_content[0], w0, rtol=1e-4)
+    assert np.allclose(res.temperature[0], np.linspace(5.0, 20.0, grid.x.size))
+    assert np.all(res.mass_balance_error < 1e-9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "fragment"),
+    [
+        ({"relative_humidity": 1.2}, "exterior.relative_humidity: must be in (0, 1]"),
+        ({"kind": "wind"}, "exterior.kind: must be 'surface' or 'air'"),
+        ({"beta": -1.0}, "exterior.beta: must be >= 0"),
+    ],
+)
+def test_bad_boundaries_are_refused_in_one_line(kwargs, fragment):
+    grid = make_grid([Layer(cases.hamstad2_material(), 0.05)])
+    ext = Boundary(**{"kind": "air", "temperature": 5.0, "relative_humidity": 0.8, "h": 25.0, **kwargs})
+    with pytest.raises(StudyError) as e:
+        solve(grid, ext, Boundary("air", 20.0, 0.5), 20.0, 0.5, [3600.0])
+    assert fragment in str(e.value) and "\n" not in str(e.value)
+
+
 # ============================================================================ benchmarks
 def _assert_all_pass(run):
     bad = run.checks[~run.checks["passed"]]
@@ -173,7 +220,8 @@ def test_en15026_with_a_scalar_resistance_factor_fails_table_a1():
 # ============================================================================ wallcal verify
 def test_verify_writes_the_tables_and_exits_0(tmp_path, capsys):
     out = tmp_path / "v"
-    assert main(["verify", "hamstad2", "--out", str(out)]) == 0
+    assert main(["verify", "hamstad2", "--out", str(out), "--plot"]) == 0
+    assert (out / "hamstad2" / "profiles.png").stat().st_size > 10_000
     v = pd.read_csv(out / "verification.csv")
     assert list(v.columns) == ["case", "quantity", "day", "x_m", "value", "lower", "upper", "passed"]
     assert v["passed"].all() and set(v["case"]) == {"hamstad2"}

@@ -69,7 +69,7 @@ def vapour_pressure(t, u):
 def node_props(t, u, m, tw, td, thermal):
     """``(w, lambda, delta_p, p_v)`` of a cell."""
     w, _ = interp(tw, m, u)
-    lam = thermal[m, 0] + thermal[m, 1] * w
+    lam = thermal[m, 0] + thermal[m, 1] * w + thermal[m, 3] * t
     d, _ = interp(td, m, u)
     d = d * T_REF / (t + 273.15)
     return w, lam, d, vapour_pressure(t, u)
@@ -85,12 +85,13 @@ def dpsat_dt(t):
 @inner()
 def cell_props(t, u, m, tw, tk, td, thermal, out):
     """A cell's properties and their derivatives, into ``out``: 0 w, 1 dw/du, 2 lambda, 3 dlambda/du,
-    4 delta_p, 5 ddelta/dT, 6 ddelta/du, 7 p_v, 8 dp_v/dT, 9 dp_v/du, 10 Phi, 11 dPhi/du."""
+    4 delta_p, 5 ddelta/dT, 6 ddelta/du, 7 p_v, 8 dp_v/dT, 9 dp_v/du, 10 Phi, 11 dPhi/du, 12 dlambda/dT."""
     w, dw = interp(tw, m, u)
     out[0] = w
     out[1] = dw
-    out[2] = thermal[m, 0] + thermal[m, 1] * w
+    out[2] = thermal[m, 0] + thermal[m, 1] * w + thermal[m, 3] * t
     out[3] = thermal[m, 1] * dw
+    out[12] = thermal[m, 3]
     d, dd = interp(td, m, u)
     tk_ = t + 273.15
     out[4] = d * T_REF / tk_
@@ -116,8 +117,8 @@ def face_flux_same(ti, pi, dxi, tj, pj, dxj, jac):
     # conduction
     rh = a / pi[2] + b / pj[2]
     q = (ti - tj) / rh
-    q_ti = 1.0 / rh
-    q_tj = -1.0 / rh
+    q_ti = 1.0 / rh + q / rh * a / (pi[2] * pi[2]) * pi[12]
+    q_tj = -1.0 / rh + q / rh * b / (pj[2] * pj[2]) * pj[12]
     q_ui = q / rh * a / (pi[2] * pi[2]) * pi[3]
     q_uj = q / rh * b / (pj[2] * pj[2]) * pj[3]
     # vapour
@@ -327,7 +328,8 @@ def run_ham(
 
     Returns ``(T_out, u_out, flux_out, stats, status)``: ``flux_out[k, side, 0:3]`` the moisture [kg/m2]
     and energy [J/m2] let in through each face and the rain run off [kg/m2] from time 0 to ``t_out[k]``;
-    ``stats`` = steps, Newton iterations, rejected steps; ``status`` 0 when done, 1 when the step fell
+    ``stats`` = steps, Newton iterations, rejected steps, then how many steps took 0, 1, ... 32 (or more)
+    iterations; ``status`` 0 when done, 1 when the step fell
     below ``dt_min`` (the time reached is the last ``t_out`` filled).
     """
     n = dx.shape[0]
@@ -335,7 +337,7 @@ def run_ham(
     t_res = np.empty((n_out, n))
     u_res = np.empty((n_out, n))
     flux_out = np.zeros((n_out, 2, 3))
-    stats = np.zeros(3, dtype=np.int64)
+    stats = np.zeros(3 + 33, dtype=np.int64)
     tc = t0.copy()
     uc = u0.copy()
     tn = np.empty(n)
@@ -356,7 +358,7 @@ def run_ham(
     x = np.zeros((n, 2))
     dp = np.zeros((n, 2, 2))
     rp = np.zeros((n, 2))
-    props = np.empty((n, 12))
+    props = np.empty((n, 13))
     jac = np.empty((2, 4))
     b_l = np.empty(NB_COLS)
     b_r = np.empty(NB_COLS)
@@ -494,6 +496,8 @@ def run_ham(
                 converged = True
                 break
         stats[1] += it
+        if converged:
+            stats[3 + min(it, 32)] += 1
         if not converged:
             stats[2] += 1
             prev_step = 0.0

@@ -123,8 +123,9 @@ class HygricMaterial:
         Used in error messages.
     storage : callable
         ``w(pc)`` [kg/m3] for suction ``pc`` [Pa]; must be non-increasing in ``pc`` and non-negative.
-    lambda_dry, lambda_w : float
-        Thermal conductivity ``lambda = lambda_dry + lambda_w w`` [W/(m K)], ``lambda_w`` per kg/m3.
+    lambda_dry, lambda_w, lambda_t : float
+        Thermal conductivity ``lambda = lambda_dry + lambda_w w + lambda_t T`` [W/(m K)], ``lambda_w`` per
+        kg/m3, ``lambda_t`` per K (``T`` in degC: ``lambda_dry`` is the dry value at 0 degC).
     rho_c_dry : float
         Volumetric heat capacity of the dry material [J/(m3 K)] (the water's ``c_w w`` is added).
     resistance_factor : callable or float
@@ -143,6 +144,7 @@ class HygricMaterial:
     lambda_dry: float
     rho_c_dry: float
     lambda_w: float = 0.0
+    lambda_t: float = 0.0
     resistance_factor: Callable | float | None = None
     vapour_permeability: float | None = None
     liquid_conductivity: Callable | None = None
@@ -155,6 +157,8 @@ class HygricMaterial:
         where = f"material {self.name!r}"
         if not (self.lambda_dry > 0 and np.isfinite(self.lambda_dry)):
             raise StudyError([f"{where}: dry thermal conductivity must be > 0, got {self.lambda_dry}"])
+        if not (np.isfinite(self.lambda_w) and np.isfinite(self.lambda_t)):
+            raise StudyError([f"{where}: lambda_w and lambda_t must be finite"])
         if not (self.rho_c_dry > 0 and np.isfinite(self.rho_c_dry)):
             raise StudyError([f"{where}: dry volumetric heat capacity must be > 0, got {self.rho_c_dry}"])
         if self.liquid_conductivity is not None and self.moisture_diffusivity is not None:
@@ -231,9 +235,9 @@ class HygricMaterial:
 
 def stack_tables(materials: list[HygricMaterial]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The kernel's per-material arrays: ``w``, ``kirchhoff``, ``delta_ref`` (rows) and ``(lambda_dry,
-    lambda_w, rho_c_dry)`` per material."""
+    lambda_w, rho_c_dry, lambda_t)`` per material."""
     w = np.vstack([m.w for m in materials])
     kir = np.vstack([m.kirchhoff for m in materials])
     dlt = np.vstack([m.delta_ref for m in materials])
-    thermal = np.array([[m.lambda_dry, m.lambda_w, m.rho_c_dry] for m in materials], dtype=float)
+    thermal = np.array([[m.lambda_dry, m.lambda_w, m.rho_c_dry, m.lambda_t] for m in materials], dtype=float)
     return w, kir, dlt, thermal

@@ -255,5 +255,10 @@ def solve(
         runoff=flux[:, :, 2],
         mass_balance_error=rel(stored_m, inflow[:, :, 0]),
         energy_balance_error=rel(stored_e, inflow[:, :, 1]),
-        stats={"steps": int(stats[0]), "newton_iterations": int(stats[1]), "rejected_steps": int(stats[2])},
+        stats={
+            "steps": int(stats[0]),
+            "newton_iterations": int(stats[1]),
+            "rejected_steps": int(stats[2]),
+            "iterations_per_step": {k: int(v) for k, v in enumerate(stats[3:]) if v},
+        },
     )
