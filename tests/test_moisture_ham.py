@@ -107,6 +107,22 @@ def test_mass_and_energy_balances_close_with_rain_runoff_and_varying_air():
     assert res.relative_humidity[1, 0] > 0.999  # saturated face at the end of the shower
 
 
+def test_rain_taken_up_plus_runoff_is_the_rain_supplied_whatever_the_steps():
+    """Boundary data are averaged over each step: hourly rain samples are integrated exactly (trapezoid),
+    not sampled at the end of the (adaptive) steps."""
+    grid = make_grid([Layer(cases.en15026_material(), 0.1)], first=2e-4, ratio=1.3)
+    t = np.arange(0, 25) * 3600.0
+    rain = np.zeros(t.size)
+    rain[[3, 9, 10, 17]] = [2e-3, 6e-3, 1e-3, 4e-3]  # kg/(m2 s): isolated hourly showers
+    ext = Boundary("air", 10.0, 0.8, times=t, h=25.0, beta=0.0, rain=rain)  # sealed to vapour
+    inn = Boundary("air", 20.0, 0.5, h=8.0, beta=0.0)
+    supplied = float(np.sum(0.5 * (rain[1:] + rain[:-1]) * np.diff(t)))
+    for dt_max in (3600.0, 300.0):
+        res = solve(grid, ext, inn, 15.0, 0.6, [24 * 3600.0], dt_max=dt_max)
+        assert res.runoff[-1, 0] > 0.1 * supplied
+        assert res.inflow[-1, 0, 0] + res.runoff[-1, 0] == pytest.approx(supplied, rel=1e-9)
+
+
 def test_heat_alone_reaches_the_steady_conduction_profile():
     """A sealed wall with no moisture gradient: the temperature tends to the series-resistance profile."""
     m = cases.hamstad2_material()

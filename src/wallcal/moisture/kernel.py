@@ -13,7 +13,7 @@ fluxes carry (``h_v = 2.501e6 + 1870 T`` J/kg, so a vapour flux that condenses r
 Both balances are conservative: what the boundaries let in over a run equals the stored change to the
 Newton tolerance, and the kernel returns the integrated boundary fluxes so that the caller can check it.
 
-Boundary array ``bc[side, k, col]`` at times ``tb[k]`` (linear in time, evaluated at the end of each step),
+Boundary array ``bc[side, k, col]`` at times ``tb[k]`` (linear in time, averaged over each step),
 ``side`` 0 the exterior face (x = 0), 1 the interior face; ``kind[side]`` 0 imposes the surface state
 (``col 0`` T [degC], ``col 1`` u), 1 couples to air (``col 0`` air T, ``col 1`` air vapour pressure [Pa],
 ``col 2`` heat transfer coefficient [W/(m2 K)], ``col 3`` vapour transfer coefficient [s/m], ``col 4`` liquid
@@ -225,16 +225,13 @@ def boundary_flux(kind, b, t, u, m, dx, tw, tk, td, thermal):
 
 
 @inner()
-def bc_at(bc, tb, side, time, out):
+def bc_integral(bc, cum, tb, side, c, time):
+    """Integral of boundary column ``c`` from ``tb[0]`` to ``time`` (linear between samples, held beyond)."""
     n = tb.shape[0]
     if n == 1 or time <= tb[0]:
-        for c in range(NB_COLS):
-            out[c] = bc[side, 0, c]
-        return
+        return (time - tb[0]) * bc[side, 0, c]
     if time >= tb[n - 1]:
-        for c in range(NB_COLS):
-            out[c] = bc[side, n - 1, c]
-        return
+        return cum[side, n - 1, c] + (time - tb[n - 1]) * bc[side, n - 1, c]
     lo = 0
     hi = n - 1
     while hi - lo > 1:
@@ -243,9 +240,18 @@ def bc_at(bc, tb, side, time, out):
             lo = mid
         else:
             hi = mid
-    f = (time - tb[lo]) / (tb[hi] - tb[lo])
+    h = time - tb[lo]
+    f = h / (tb[hi] - tb[lo])
+    v = bc[side, lo, c] * (1.0 - f) + bc[side, hi, c] * f
+    return cum[side, lo, c] + 0.5 * h * (bc[side, lo, c] + v)
+
+
+@inner()
+def bc_mean(bc, cum, tb, side, t0, t1, out):
+    """The boundary data averaged over the step ``[t0, t1]`` (so that a supplied flux such as rain is
+    integrated exactly, whatever the steps)."""
     for c in range(NB_COLS):
-        out[c] = bc[side, lo, c] * (1.0 - f) + bc[side, hi, c] * f
+        out[c] = (bc_integral(bc, cum, tb, side, c, t1) - bc_integral(bc, cum, tb, side, c, t0)) / (t1 - t0)
 
 
 @inner()
@@ -359,6 +365,13 @@ def run_ham(
     dp = np.zeros((n, 2, 2))
     rp = np.zeros((n, 2))
     props = np.empty((n, 13))
+    cum_bc = np.zeros(bc.shape)
+    for side in range(2):
+        for kb in range(1, tb.shape[0]):
+            for c in range(NB_COLS):
+                cum_bc[side, kb, c] = cum_bc[side, kb - 1, c] + 0.5 * (tb[kb] - tb[kb - 1]) * (
+                    bc[side, kb - 1, c] + bc[side, kb, c]
+                )
     jac = np.empty((2, 4))
     b_l = np.empty(NB_COLS)
     b_r = np.empty(NB_COLS)
@@ -376,8 +389,8 @@ def run_ham(
         step = min(dt, t_out[k] - time)
         last = step >= t_out[k] - time
         tnew = time + step
-        bc_at(bc, tb, 0, tnew, b_l)
-        bc_at(bc, tb, 1, tnew, b_r)
+        bc_mean(bc, cum_bc, tb, 0, time, tnew, b_l)
+        bc_mean(bc, cum_bc, tb, 1, time, tnew, b_r)
         # initial guess: the last step's rate of change carried on (the last state after a rejection)
         ratio = step / prev_step if prev_step > 0.0 else 0.0
         for i in range(n):
@@ -515,6 +528,7 @@ def run_ham(
             cum[side, 2] += ro * step
         big_t = 0.0
         big_u = 0.0
+        big_w = 0.0
         for i in range(n):
             big_t = max(big_t, abs(tn[i] - tc[i]))
             big_u = max(big_u, abs(un[i] - uc[i]))
@@ -523,6 +537,7 @@ def run_ham(
             tc[i] = tn[i]
             uc[i] = un[i]
             w, e, _ = storage(tc[i], uc[i], mat[i], tw, thermal)
+            big_w = max(big_w, abs(w - w_old[i]) / tw[mat[i], 0])
             w_old[i] = w
             e_old[i] = e
         time = tnew
@@ -534,12 +549,15 @@ def run_ham(
             u_res[k, :] = uc
             flux_out[k, :, :] = cum
             k += 1
-        # next step: by the change of this one (targets 2 K and 0.2 in ln pc) and the Newton effort
+        # next step: by the change of this one (targets 2 K, 2 % of the capillary saturation's water content
+        # and 1 in ln pc) and the Newton effort
         grow = 2.0
         if big_t > 0.0:
             grow = min(grow, 2.0 / big_t)
+        if big_w > 0.0:
+            grow = min(grow, 0.02 / big_w)
         if big_u > 0.0:
-            grow = min(grow, 0.2 / big_u)
+            grow = min(grow, 1.0 / big_u)
         if it > 5:
             grow = min(grow, 0.7)
         grow = max(grow, 0.5)
