@@ -401,18 +401,23 @@ def run_ham(
         while it < max_iter:
             it += 1
             for i in range(n):
-                w, e, dw = storage(tn[i], un[i], mat[i], tw, thermal)
-                res[i, 0] = dx[i] * (w - w_old[i]) / step
-                res[i, 1] = dx[i] * (e - e_old[i]) / step
-                lo[i, :, :] = 0.0
-                up[i, :, :] = 0.0
+                pr = props[i]
+                cell_props(tn[i], un[i], mat[i], tw, tk, td, thermal, pr)
+                w = pr[0]
+                dw = pr[1]
+                rc = thermal[mat[i], 2] + C_WATER * w
+                c = dx[i] / step
+                res[i, 0] = c * (w - w_old[i])
+                res[i, 1] = c * (rc * tn[i] - e_old[i])
+                for r in range(2):
+                    for q in range(2):
+                        lo[i, r, q] = 0.0
+                        up[i, r, q] = 0.0
                 di[i, 0, 0] = 0.0
-                di[i, 0, 1] = dx[i] * dw / step
-                di[i, 1, 0] = dx[i] * (thermal[mat[i], 2] + C_WATER * w) / step
-                di[i, 1, 1] = dx[i] * C_WATER * tn[i] * dw / step
+                di[i, 0, 1] = c * dw
+                di[i, 1, 0] = c * rc
+                di[i, 1, 1] = c * C_WATER * tn[i] * dw
             # interior faces
-            for i in range(n):
-                cell_props(tn[i], un[i], mat[i], tw, tk, td, thermal, props[i])
             for f in range(1, n):
                 i = f - 1
                 j = f
