@@ -2,8 +2,10 @@
 
 Unknowns per cell: temperature ``T`` [degC] and the moisture potential ``u = ln(pc)`` (see
 :mod:`wallcal.moisture.materials`). Backward Euler in time; each step is solved by Newton's method on the
-block-tridiagonal (2x2 blocks) system, whose Jacobian is assembled face by face from one-sided finite
-differences of the face fluxes. Balances per cell (per m2 of wall, ``dx`` the cell width)::
+block-tridiagonal system (2x2 blocks). The Jacobian is analytic: each cell's properties and their
+derivatives once per iteration (:func:`cell_props`), the face fluxes by the chain rule
+(:func:`face_flux_same`); only the liquid flux across an interface between two materials and the two
+boundary faces are differentiated by one-sided differences. Balances per cell (per m2 of wall, ``dx`` the cell width)::
 
     dx (w - w_old) / dt + G_e - G_w = 0                       moisture, G [kg/(m2 s)] towards +x
     dx (E - E_old) / dt + Q_e - Q_w = 0                       energy,  E = (rho c_dry + c_w w) T
@@ -76,10 +78,10 @@ def node_props(t, u, m, tw, td, thermal):
 
 
 @inner()
-def dpsat_dt(t):
+def dln_psat_dt(t):
     if t >= 0.0:
-        return psat(t) * 17.269 * 237.3 / ((237.3 + t) * (237.3 + t))
-    return psat(t) * 21.875 * 265.5 / ((265.5 + t) * (265.5 + t))
+        return 17.269 * 237.3 / ((237.3 + t) * (237.3 + t))
+    return 21.875 * 265.5 / ((265.5 + t) * (265.5 + t))
 
 
 @inner()
@@ -101,7 +103,7 @@ def cell_props(t, u, m, tw, tk, td, thermal, out):
     phi = math.exp(-pc / KELVIN)
     ps = psat(t)
     out[7] = phi * ps
-    out[8] = phi * dpsat_dt(t)
+    out[8] = out[7] * dln_psat_dt(t)
     out[9] = -out[7] * pc / KELVIN
     k, dk = interp(tk, m, u)
     out[10] = k
@@ -109,9 +111,10 @@ def cell_props(t, u, m, tw, tk, td, thermal, out):
 
 
 @inner()
-def face_flux_same(ti, pi, dxi, tj, pj, dxj, jac):
-    """Flux ``(G, Q)`` between two cells of one material from their properties ``pi``, ``pj``
-    (:func:`cell_props`), and its derivatives into ``jac[0:2, 0:4]`` (rows G, Q; columns Ti, ui, Tj, uj)."""
+def face_flux_same(ti, pi, dxi, tj, pj, dxj, jac, gl, gl_ui, gl_uj):
+    """Flux ``(G, Q)`` between two cells from their properties ``pi``, ``pj`` (:func:`cell_props`) and the
+    liquid flux ``gl`` with its derivatives in ``ui``, ``uj``; the derivatives of ``(G, Q)`` go into
+    ``jac[0:2, 0:4]`` (rows G, Q; columns Ti, ui, Tj, uj)."""
     a = HALF * dxi
     b = HALF * dxj
     # conduction
@@ -137,11 +140,6 @@ def face_flux_same(ti, pi, dxi, tj, pj, dxj, jac):
         gv_ui = pi[9] / rv + ci * pi[6]
         gv_tj = -pj[8] / rv + cj * pj[5]
         gv_uj = -pj[9] / rv + cj * pj[6]
-    # liquid (Kirchhoff)
-    dist = a + b
-    gl = (pj[10] - pi[10]) / dist
-    gl_ui = -pi[11] / dist
-    gl_uj = pj[11] / dist
     tf = HALF * (ti + tj)
     hv = H_V0 + C_VAP * tf
     hl = C_WATER * tf
@@ -157,36 +155,24 @@ def face_flux_same(ti, pi, dxi, tj, pj, dxj, jac):
 
 
 @inner()
-def face_flux(ti, ui, mi, dxi, tj, uj, mj, dxj, tw, tk, td, thermal):
-    """Moisture and energy flux ``(G, Q)`` from cell i to cell j (j on the +x side)."""
-    wi, li, di, pi = node_props(ti, ui, mi, tw, td, thermal)
-    wj, lj, dj, pj = node_props(tj, uj, mj, tw, td, thermal)
-    q = (ti - tj) / (HALF * dxi / li + HALF * dxj / lj)
-    gv = 0.0
-    if di > 0.0 and dj > 0.0:
-        gv = (pi - pj) / (HALF * dxi / di + HALF * dxj / dj)
-    gl = 0.0
-    if mi == mj:
-        a, _ = interp(tk, mi, ui)
-        b, _ = interp(tk, mi, uj)
-        gl = (b - a) / (HALF * (dxi + dxj))
+def liquid_interface(ui, mi, dxi, uj, mj, dxj, tk):
+    """Liquid flux from cell i (material mi) to cell j (material mj): each half cell's secant conductance
+    ``dPhi/dpc`` between the two suctions, in series."""
+    pci = math.exp(ui)
+    pcj = math.exp(uj)
+    ai, si = interp(tk, mi, ui)
+    bj, sj = interp(tk, mj, uj)
+    if abs(uj - ui) > 1e-6:
+        aj, _ = interp(tk, mi, uj)
+        bi, _ = interp(tk, mj, ui)
+        ka = (aj - ai) / (pcj - pci)
+        kb = (bj - bi) / (pcj - pci)
     else:
-        pci = math.exp(ui)
-        pcj = math.exp(uj)
-        ai, si = interp(tk, mi, ui)
-        bj, sj = interp(tk, mj, uj)
-        if abs(uj - ui) > 1e-6:
-            aj, _ = interp(tk, mi, uj)
-            bi, _ = interp(tk, mj, ui)
-            ka = (aj - ai) / (pcj - pci)
-            kb = (bj - bi) / (pcj - pci)
-        else:
-            ka = si / pci
-            kb = sj / pcj
-        if ka > 0.0 and kb > 0.0:
-            gl = (pcj - pci) / (HALF * dxi / ka + HALF * dxj / kb)
-    tf = HALF * (ti + tj)
-    return gv + gl, q + gv * (H_V0 + C_VAP * tf) + gl * C_WATER * tf
+        ka = si / pci
+        kb = sj / pcj
+    if ka > 0.0 and kb > 0.0:
+        return (pcj - pci) / (HALF * dxi / ka + HALF * dxj / kb)
+    return 0.0
 
 
 @inner()
@@ -422,37 +408,23 @@ def run_ham(
                 i = f - 1
                 j = f
                 if mat[i] == mat[j]:
-                    g0, q0 = face_flux_same(tn[i], props[i], dx[i], tn[j], props[j], dx[j], jac)
-                    a00 = jac[0, 0]
-                    a01 = jac[0, 1]
-                    a10 = jac[1, 0]
-                    a11 = jac[1, 1]
-                    b00 = jac[0, 2]
-                    b01 = jac[0, 3]
-                    b10 = jac[1, 2]
-                    b11 = jac[1, 3]
+                    dist = HALF * (dx[i] + dx[j])
+                    gl = (props[j, 10] - props[i, 10]) / dist
+                    gl_ui = -props[i, 11] / dist
+                    gl_uj = props[j, 11] / dist
                 else:
-                    g0, q0 = face_flux(tn[i], un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal)
-                    g1, q1 = face_flux(
-                        tn[i] + ht, un[i], mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
-                    )
-                    g2, q2 = face_flux(
-                        tn[i], un[i] + hu, mat[i], dx[i], tn[j], un[j], mat[j], dx[j], tw, tk, td, thermal
-                    )
-                    g3, q3 = face_flux(
-                        tn[i], un[i], mat[i], dx[i], tn[j] + ht, un[j], mat[j], dx[j], tw, tk, td, thermal
-                    )
-                    g4, q4 = face_flux(
-                        tn[i], un[i], mat[i], dx[i], tn[j], un[j] + hu, mat[j], dx[j], tw, tk, td, thermal
-                    )
-                    a00 = (g1 - g0) / ht
-                    a01 = (g2 - g0) / hu
-                    a10 = (q1 - q0) / ht
-                    a11 = (q2 - q0) / hu
-                    b00 = (g3 - g0) / ht
-                    b01 = (g4 - g0) / hu
-                    b10 = (q3 - q0) / ht
-                    b11 = (q4 - q0) / hu
+                    gl = liquid_interface(un[i], mat[i], dx[i], un[j], mat[j], dx[j], tk)
+                    gl_ui = (liquid_interface(un[i] + hu, mat[i], dx[i], un[j], mat[j], dx[j], tk) - gl) / hu
+                    gl_uj = (liquid_interface(un[i], mat[i], dx[i], un[j] + hu, mat[j], dx[j], tk) - gl) / hu
+                g0, q0 = face_flux_same(tn[i], props[i], dx[i], tn[j], props[j], dx[j], jac, gl, gl_ui, gl_uj)
+                a00 = jac[0, 0]
+                a01 = jac[0, 1]
+                a10 = jac[1, 0]
+                a11 = jac[1, 1]
+                b00 = jac[0, 2]
+                b01 = jac[0, 3]
+                b10 = jac[1, 2]
+                b11 = jac[1, 3]
                 res[i, 0] += g0
                 res[i, 1] += q0
                 res[j, 0] -= g0
