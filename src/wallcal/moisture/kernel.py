@@ -4,8 +4,10 @@ Unknowns per cell: temperature ``T`` [degC] and the moisture potential ``u = ln(
 :mod:`wallcal.moisture.materials`). Backward Euler in time; each step is solved by Newton's method on the
 block-tridiagonal system (2x2 blocks). The Jacobian is analytic: each cell's properties and their
 derivatives once per iteration (:func:`cell_props`), the face fluxes by the chain rule
-(:func:`face_flux_same`); only the liquid flux across an interface between two materials and the two
-boundary faces are differentiated by one-sided differences. Balances per cell (per m2 of wall, ``dx`` the cell width)::
+(:func:`face_flux`); only the liquid flux across an interface between two materials and the two
+boundary faces are differentiated by one-sided differences.
+
+Balances per cell (per m2 of wall, ``dx`` the cell width)::
 
     dx (w - w_old) / dt + G_e - G_w = 0                       moisture, G [kg/(m2 s)] towards +x
     dx (E - E_old) / dt + Q_e - Q_w = 0                       energy,  E = (rho c_dry + c_w w) T
@@ -111,7 +113,7 @@ def cell_props(t, u, m, tw, tk, td, thermal, out):
 
 
 @inner()
-def face_flux_same(ti, pi, dxi, tj, pj, dxj, jac, gl, gl_ui, gl_uj):
+def face_flux(ti, pi, dxi, tj, pj, dxj, jac, gl, gl_ui, gl_uj):
     """Flux ``(G, Q)`` between two cells from their properties ``pi``, ``pj`` (:func:`cell_props`) and the
     liquid flux ``gl`` with its derivatives in ``ui``, ``uj``; the derivatives of ``(G, Q)`` go into
     ``jac[0:2, 0:4]`` (rows G, Q; columns Ti, ui, Tj, uj)."""
@@ -416,7 +418,7 @@ def run_ham(
                     gl = liquid_interface(un[i], mat[i], dx[i], un[j], mat[j], dx[j], tk)
                     gl_ui = (liquid_interface(un[i] + hu, mat[i], dx[i], un[j], mat[j], dx[j], tk) - gl) / hu
                     gl_uj = (liquid_interface(un[i], mat[i], dx[i], un[j] + hu, mat[j], dx[j], tk) - gl) / hu
-                g0, q0 = face_flux_same(tn[i], props[i], dx[i], tn[j], props[j], dx[j], jac, gl, gl_ui, gl_uj)
+                g0, q0 = face_flux(tn[i], props[i], dx[i], tn[j], props[j], dx[j], jac, gl, gl_ui, gl_uj)
                 a00 = jac[0, 0]
                 a01 = jac[0, 1]
                 a10 = jac[1, 0]
