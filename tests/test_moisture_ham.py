@@ -105,6 +105,8 @@ def test_mass_and_energy_balances_close_with_rain_runoff_and_varying_air():
     stored = (res.water_content[-1] - w0) @ grid.dx
     assert stored == pytest.approx(res.inflow[-1, :, 0].sum(), rel=1e-9)
     assert res.relative_humidity[1, 0] > 0.999  # saturated face at the end of the shower
+    # the flux through each face over the last step: in steady rain it is the uptake at saturation
+    assert 0 < res.face_flux[1, 0, 0] < 5e-3
 
 
 def test_rain_taken_up_plus_runoff_is_the_rain_supplied_whatever_the_steps():
@@ -131,6 +133,8 @@ def test_heat_alone_reaches_the_steady_conduction_profile():
         grid, Boundary("surface", 0.0, 0.5), Boundary("surface", 20.0, 0.5), 10.0, 0.5, [30 * 86400.0], dt_max=3600.0
     )
     assert np.allclose(res.temperature[-1], 20.0 * grid.x / 0.05, atol=0.05)
+    # 60 W/m2 leave through the exterior face and enter through the interior one (0.15 W/(m K) * 20 K / 0.05 m)
+    assert res.face_flux[-1, :, 1] == pytest.approx([-60.0, 60.0], rel=1e-3)
 
 
 def test_temperature_dependent_conductivity_gives_the_kirchhoff_steady_profile():

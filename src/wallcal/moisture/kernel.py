@@ -321,7 +321,9 @@ def run_ham(
     """Integrate from time 0 to ``t_out[-1]``; states at each ``t_out``.
 
     Returns ``(T_out, u_out, flux_out, stats, status)``: ``flux_out[k, side, 0:3]`` the moisture [kg/m2]
-    and energy [J/m2] let in through each face and the rain run off [kg/m2] from time 0 to ``t_out[k]``;
+    and energy [J/m2] let in through each face and the rain run off [kg/m2] from time 0 to ``t_out[k]``,
+    ``flux_out[k, side, 3:5]`` the moisture [kg/(m2 s)] and energy [W/m2] flux into the wall through the face
+    over the step that ended at ``t_out[k]`` (nan at time 0);
     ``stats`` = steps, Newton iterations, rejected steps, then how many steps took 0, 1, ... 32 (or more)
     iterations; ``status`` 0 when done, 1 when the step fell
     below ``dt_min`` (the time reached is the last ``t_out`` filled).
@@ -330,7 +332,7 @@ def run_ham(
     n_out = t_out.shape[0]
     t_res = np.empty((n_out, n))
     u_res = np.empty((n_out, n))
-    flux_out = np.zeros((n_out, 2, 3))
+    flux_out = np.full((n_out, 2, 5), np.nan)
     stats = np.zeros(3 + 33, dtype=np.int64)
     tc = t0.copy()
     uc = u0.copy()
@@ -363,12 +365,13 @@ def run_ham(
     jac = np.empty((2, 4))
     b_l = np.empty(NB_COLS)
     b_r = np.empty(NB_COLS)
-    cum = np.zeros((2, 3))
+    cum = np.zeros((2, 5))
     time = 0.0
     k = 0
     while k < n_out and t_out[k] <= 0.0:
         t_res[k, :] = tc
         u_res[k, :] = uc
+        flux_out[k, :, 0:3] = 0.0
         k += 1
     dt = dt_first
     ht = 1e-6
@@ -505,6 +508,8 @@ def run_ham(
             cum[side, 0] += g0 * step
             cum[side, 1] += q0 * step
             cum[side, 2] += ro * step
+            cum[side, 3] = g0
+            cum[side, 4] = q0
         big_t = 0.0
         big_u = 0.0
         big_w = 0.0

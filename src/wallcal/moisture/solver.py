@@ -137,7 +137,10 @@ class HamResult:
     ``temperature`` [degC], ``potential`` (``ln pc``), ``relative_humidity`` (fraction) and
     ``water_content`` [kg/m3] have shape ``(len(times), n_cells)``; ``inflow[k, side]`` is the moisture
     [kg/m2] and energy [J/m2] let in through each face (0 exterior, 1 interior) from time 0 to ``times[k]``
-    and ``runoff[k, side]`` the rain that ran off [kg/m2]; ``mass_balance_error`` and
+    and ``runoff[k, side]`` the rain that ran off [kg/m2]; ``face_flux[k, side]`` the moisture
+    [kg/(m2 s)] and energy [W/m2] flux into the wall through each face over the step that ended at
+    ``times[k]`` (nan at time 0; into the wall at both faces, so the interior face's heat flux in wallcal's
+    convention, positive towards the interior, is ``-face_flux[k, 1, 1]``); ``mass_balance_error`` and
     ``energy_balance_error`` are ``|stored change - inflow|`` relative to the larger of the stored change and
     the face inflows, at each output time."""
 
@@ -150,6 +153,7 @@ class HamResult:
     water_content: np.ndarray
     inflow: np.ndarray
     runoff: np.ndarray
+    face_flux: np.ndarray
     mass_balance_error: np.ndarray
     energy_balance_error: np.ndarray
     stats: dict = field(default_factory=dict)
@@ -253,6 +257,7 @@ def solve(
         water_content=w,
         inflow=inflow,
         runoff=flux[:, :, 2],
+        face_flux=flux[:, :, 3:5],
         mass_balance_error=rel(stored_m, inflow[:, :, 0]),
         energy_balance_error=rel(stored_e, inflow[:, :, 1]),
         stats={
