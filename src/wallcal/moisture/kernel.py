@@ -40,6 +40,7 @@ C_VAP = 1870.0  # J/(kg K)
 HALF = 0.5
 
 NB_COLS = 6
+DAMP_U = 2.0  # largest Newton update of ln pc (a larger one took more iterations in the rain year)
 
 
 @inner()
@@ -482,8 +483,8 @@ def run_ham(
             damp = 1.0
             if big_t > 10.0:
                 damp = 10.0 / big_t
-            if big_u * damp > 2.0:
-                damp = 2.0 / big_u
+            if big_u * damp > DAMP_U:
+                damp = DAMP_U / big_u
             for i in range(n):
                 tn[i] += damp * x[i, 0]
                 un[i] += damp * x[i, 1]
