@@ -383,8 +383,9 @@ def run_ham(
         tnew = time + step
         bc_mean(bc, cum_bc, tb, 0, time, tnew, b_l)
         bc_mean(bc, cum_bc, tb, 1, time, tnew, b_r)
-        # initial guess: the last step's rate of change carried on (the last state after a rejection)
-        ratio = step / prev_step if prev_step > 0.0 else 0.0
+        # initial guess: the last step's rate of change carried on over at most twice its length (the last
+        # state after a rejection)
+        ratio = min(step / prev_step, 2.0) if prev_step > 0.0 else 0.0
         for i in range(n):
             tn[i] = tc[i] + ratio * rate_t[i]
             un[i] = uc[i] + ratio * rate_u[i]
