@@ -255,8 +255,8 @@ def test_verify_writes_the_tables_and_exits_0(tmp_path, capsys):
 def test_verify_exits_1_when_a_check_fails(tmp_path, monkeypatch, capsys):
     real = cases.CASES["hamstad2"]
 
-    def failing(days=None):
-        run = real(days)
+    def failing():
+        run = real()
         run.checks.loc[0, "passed"] = False
         return run
 

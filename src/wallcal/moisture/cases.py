@@ -165,7 +165,7 @@ def _profiles(result: HamResult) -> pd.DataFrame:
     )
 
 
-def hamstad2(days: list[float] | None = None) -> CaseRun:
+def hamstad2() -> CaseRun:
     """HAMSTAD 2: isothermal drying/wetting of a 0.2 m wall, against the analytical w(x) at 100/300/1000 h."""
     start = time.perf_counter()
     ref = _table("hamstad2_analytical.csv")
@@ -195,10 +195,10 @@ def hamstad2(days: list[float] | None = None) -> CaseRun:
     return _finish("hamstad2", rows, res, start)
 
 
-def en15026(days: list[float] | None = None) -> CaseRun:
+def en15026() -> CaseRun:
     """EN 15026:2007 Annex A: semi-infinite wall, surface stepped to 30 degC / 95 %; Tables A.1 and A.2."""
     start = time.perf_counter()
-    days = [7.0, 30.0, 365.0] if days is None else sorted(days)
+    days = [7.0, 30.0, 365.0]
     t1 = _table("en15026_table_a1.csv")
     t2 = _table("en15026_table_a2.csv")
     grid = make_grid([Layer(en15026_material(), 40.0)], first=2e-4, ratio=1.04, max_cell=0.5)
@@ -235,12 +235,12 @@ def en15026(days: list[float] | None = None) -> CaseRun:
     return _finish("en15026", rows, res, start)
 
 
-def hamstad5(days: list[float] | None = None) -> CaseRun:
+def hamstad5() -> CaseRun:
     """HAMSTAD 5: brick / mortar / capillary-active insulation; at 60 days w and RH against the envelope
     (lowest to highest) of the six participating codes' results, at every position where at least five
     report."""
     start = time.perf_counter()
-    days = sorted({1.0, 10.0, 30.0, 60.0} | set(days or []))
+    days = [1.0, 10.0, 30.0, 60.0]
     brick, mortar, insulation = hamstad5_materials()
     grid = make_grid(
         [Layer(brick, 0.365), Layer(mortar, 0.015), Layer(insulation, 0.040)], first=1e-4, ratio=1.2, max_cell=5e-3
@@ -290,10 +290,10 @@ UNAVAILABLE = {
 }
 
 
-def run_case(name: str, days: list[float] | None = None) -> CaseRun:
+def run_case(name: str) -> CaseRun:
     """Run one verification case by name."""
     if name in UNAVAILABLE:
         raise StudyError([f"case {name!r}: not available: {UNAVAILABLE[name]}"])
     if name not in CASES:
         raise StudyError([f"case {name!r}: unknown; the cases are {', '.join([*CASES, *UNAVAILABLE])}"])
-    return CASES[name](days)
+    return CASES[name]()
