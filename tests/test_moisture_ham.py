@@ -125,6 +125,23 @@ def test_rain_taken_up_plus_runoff_is_the_rain_supplied_whatever_the_steps():
         assert res.inflow[-1, 0, 0] + res.runoff[-1, 0] == pytest.approx(supplied, rel=1e-9)
 
 
+def test_evaporation_cools_a_drying_wall_by_its_latent_heat():
+    """A wet wall in dry air at its own temperature dries and cools: the energy it loses is the latent heat
+    of the water that left (the wet-bulb effect), which only the enthalpy of the vapour flux produces."""
+    brick = cases.hamstad5_materials()[0]
+    grid = make_grid([Layer(brick, 0.05)], first=5e-4, ratio=1.3, max_cell=5e-3)
+    ext = Boundary("air", 20.0, 0.3, h=10.0, beta=2e-8)
+    inn = Boundary("air", 20.0, 0.3)  # sealed and adiabatic
+    res = solve(grid, ext, inn, 20.0, 0.99, [6 * 3600.0], dt_max=600.0)
+    assert res.temperature[-1, 0] < 19.0  # the face cools below the air
+    evaporated = -res.inflow[-1, 0, 0]
+    assert evaporated > 0.05  # kg/m2 left as vapour
+    # the energy that came in through the face: convection towards the cool face minus the latent heat
+    latent = 2.45e6 * evaporated
+    convected = res.inflow[-1, 0, 1] + latent
+    assert convected > 0 and res.inflow[-1, 0, 1] < 0
+
+
 def test_heat_alone_reaches_the_steady_conduction_profile():
     """A sealed wall with no moisture gradient: the temperature tends to the series-resistance profile."""
     m = cases.hamstad2_material()
