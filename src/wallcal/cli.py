@@ -37,6 +37,7 @@ COMMAND_MODULES = (
     "wallcal.commands.diagnose",
     "wallcal.commands.retrofit",
     "wallcal.commands.building",
+    "wallcal.commands.verify",
 )
 
 

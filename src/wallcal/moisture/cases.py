@@ -1,0 +1,299 @@
+"""The verification cases: EN 15026:2007 Annex A and HAMSTAD benchmarks 2 and 5.
+
+Each case builds its layers, boundaries and initial state from the published definitions (the materials
+below), runs :func:`wallcal.moisture.solver.solve` and compares with the bundled reference tables
+(``data/``, see ``data/README.md`` for their sources). :func:`run_case` returns the comparison rows
+and the profiles; it writes nothing.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+
+from ..errors import StudyError
+from .materials import (
+    GRAVITY,
+    RHO_W,
+    HygricMaterial,
+    exp_polynomial,
+    resistance_factor_hamstad,
+    rh_from_suction,
+    van_genuchten,
+)
+from .solver import Boundary, HamResult, Layer, make_grid, solve
+
+DAY = 86400.0
+HOUR = 3600.0
+#: the allowed relative balance error of every run
+BALANCE_LIMIT = 1e-6
+
+
+# ============================================================================ materials
+def en15026_material() -> HygricMaterial:
+    """EN 15026:2007 Annex A (= HAMSTAD 1's load-bearing material)."""
+    return HygricMaterial(
+        name="EN 15026 Annex A",
+        storage=van_genuchten(146.0, [(1.0, 8e-8, 1.6, 0.375)]),
+        lambda_dry=1.5,
+        lambda_w=15.8e-3,
+        rho_c_dry=1.824e6,
+        resistance_factor=resistance_factor_hamstad(200.0, 146.0, 0.497),
+        liquid_conductivity=exp_polynomial([-39.2619, 0.0704, -1.7420e-4, -2.7953e-6, -1.1566e-7, 2.5969e-9], 73.0),
+    )
+
+
+def hamstad2_material() -> HygricMaterial:
+    """HAMSTAD 2, material A: ``w = 116 / (1 - ln(phi)/0.118)^0.869``, constant D_w and delta_p."""
+
+    def storage(pc):
+        return 116.0 / (1.0 - np.log(rh_from_suction(pc)) / 0.118) ** 0.869
+
+    return HygricMaterial(
+        name="HAMSTAD 2 material A",
+        storage=storage,
+        lambda_dry=0.15,
+        rho_c_dry=525.0 * 800.0,
+        vapour_permeability=1e-15,
+        moisture_diffusivity=lambda w: np.full_like(np.asarray(w, dtype=float), 6e-10),
+    )
+
+
+def _bm5(name, w_sat, modes, mu, k_coef, lam, lam_w, rho_c) -> HygricMaterial:
+    modes = [(k, a / (RHO_W * GRAVITY), n, 1.0 - 1.0 / n) for k, a, n in modes]
+    return HygricMaterial(
+        name=name,
+        storage=van_genuchten(w_sat, modes),
+        lambda_dry=lam,
+        lambda_w=lam_w / RHO_W,
+        rho_c_dry=rho_c,
+        resistance_factor=resistance_factor_hamstad(mu, w_sat, 0.2),
+        liquid_conductivity=exp_polynomial(k_coef, 0.0, RHO_W),
+    )
+
+
+def hamstad5_materials() -> tuple[HygricMaterial, HygricMaterial, HygricMaterial]:
+    """HAMSTAD 5: brick, glue mortar, capillary-active insulation."""
+    brick = _bm5(
+        "HAMSTAD 5 brick",
+        373.5,
+        [(0.46, 0.47, 1.5), (0.54, 0.2, 3.8)],
+        7.5,
+        [-36.484, 461.325, -5240.0, 2.907e4, -7.41e4, 6.997e4],
+        0.682,
+        0.0,
+        1600.0 * 1000.0,
+    )
+    mortar = _bm5(
+        "HAMSTAD 5 mortar",
+        700.0,
+        [(0.2, 0.5, 1.5), (0.8, 0.004, 3.8)],
+        50.0,
+        [-40.425, 83.319, -175.961, 123.863],
+        0.6,
+        0.56,
+        230.0 * 920.0,
+    )
+    insulation = _bm5(
+        "HAMSTAD 5 insulation",
+        871.0,
+        [(0.41, 0.006, 2.5), (0.59, 0.012, 2.4)],
+        5.6,
+        [-46.245, 294.506, -1439.0, 3249.0, -3370.0, 1305.0],
+        0.06,
+        0.56,
+        212.0 * 1000.0,
+    )
+    return brick, mortar, insulation
+
+
+# ============================================================================ reference data
+def _table(name: str) -> pd.DataFrame:
+    with resources.files("wallcal.moisture").joinpath("data", name).open("r", encoding="utf-8") as fh:
+        return pd.read_csv(fh)
+
+
+# ============================================================================ cases
+@dataclass
+class CaseRun:
+    """What a case run gives: the comparison rows, the profiles, the result, the run time [s]."""
+
+    name: str
+    checks: pd.DataFrame
+    profiles: pd.DataFrame
+    result: HamResult
+    seconds: float
+
+
+def _profile_at(result: HamResult, k: int, x: float, values: np.ndarray) -> float:
+    return float(np.interp(x, result.x, values[k]))
+
+
+def _balance_rows(name: str, result: HamResult, days: np.ndarray) -> list[dict]:
+    rows = []
+    for k, d in enumerate(days):
+        for q in ("mass_balance_error", "energy_balance_error"):
+            err = getattr(result, q)
+            rows.append(
+                {
+                    "case": name,
+                    "quantity": q,
+                    "day": float(d),
+                    "x_m": np.nan,
+                    "value": float(err[k]),
+                    "lower": 0.0,
+                    "upper": BALANCE_LIMIT,
+                }
+            )
+    return rows
+
+
+def _profiles(result: HamResult) -> pd.DataFrame:
+    nt, nx = result.temperature.shape
+    return pd.DataFrame(
+        {
+            "time_s": np.repeat(result.times, nx),
+            "x_m": np.tile(result.x, nt),
+            "temperature": result.temperature.ravel(),
+            "relative_humidity": result.relative_humidity.ravel(),
+            "water_content": result.water_content.ravel(),
+        }
+    )
+
+
+def hamstad2() -> CaseRun:
+    """HAMSTAD 2: isothermal drying/wetting of a 0.2 m wall, against the analytical w(x) at 100/300/1000 h."""
+    start = time.perf_counter()
+    ref = _table("hamstad2_analytical.csv")
+    hours = [100.0, 300.0, 1000.0]
+    grid = make_grid([Layer(hamstad2_material(), 0.2)], first=2e-4, ratio=1.15, max_cell=2e-3)
+    ext = Boundary("surface", 20.0, 0.45)
+    inn = Boundary("surface", 20.0, 0.65)
+    res = solve(grid, ext, inn, 20.0, 0.95, [h * HOUR for h in hours], dt_first=1.0, dt_max=1800.0)
+    rows = []
+    for k, h in enumerate(hours):
+        for x, w_ref in zip(ref["x_m"], ref[f"w_{int(h)}h"], strict=True):
+            if x <= 0 or x >= 0.2:  # the faces are the boundary values, not cells
+                continue
+            v = _profile_at(res, k, x, res.water_content)
+            rows.append(
+                {
+                    "case": "hamstad2",
+                    "quantity": "water_content",
+                    "day": h / 24.0,
+                    "x_m": x,
+                    "value": v,
+                    "lower": w_ref - 1.0,
+                    "upper": w_ref + 1.0,
+                }
+            )
+    rows += _balance_rows("hamstad2", res, np.array(hours) / 24.0)
+    return _finish("hamstad2", rows, res, start)
+
+
+def en15026() -> CaseRun:
+    """EN 15026:2007 Annex A: semi-infinite wall, surface stepped to 30 degC / 95 %; Tables A.1 and A.2."""
+    start = time.perf_counter()
+    days = [7.0, 30.0, 365.0]
+    t1 = _table("en15026_table_a1.csv")
+    t2 = _table("en15026_table_a2.csv")
+    grid = make_grid([Layer(en15026_material(), 40.0)], first=2e-4, ratio=1.04, max_cell=0.5)
+    ext = Boundary("surface", 30.0, 0.95)
+    inn = Boundary("air", 20.0, 0.5)  # far end: adiabatic and sealed (untouched in a year at 40 m)
+    res = solve(grid, ext, inn, 20.0, 0.5, [d * DAY for d in days], dt_first=1.0, dt_max=6 * HOUR)
+    rows = []
+    for k, d in enumerate(days):
+        for _, r in t1[t1["day"] == d].iterrows():
+            rows.append(
+                {
+                    "case": "en15026",
+                    "quantity": "water_content",
+                    "day": d,
+                    "x_m": r["x_m"],
+                    "value": _profile_at(res, k, r["x_m"], res.water_content),
+                    "lower": r["w_min_kg_m3"],
+                    "upper": r["w_max_kg_m3"],
+                }
+            )
+        for _, r in t2[t2["day"] == d].iterrows():
+            rows.append(
+                {
+                    "case": "en15026",
+                    "quantity": "temperature",
+                    "day": d,
+                    "x_m": r["x_m"],
+                    "value": _profile_at(res, k, r["x_m"], res.temperature),
+                    "lower": r["T_min_C"],
+                    "upper": r["T_max_C"],
+                }
+            )
+    rows += _balance_rows("en15026", res, np.array(days))
+    return _finish("en15026", rows, res, start)
+
+
+def hamstad5() -> CaseRun:
+    """HAMSTAD 5: brick / mortar / capillary-active insulation; at 60 days w and RH against the envelope
+    (lowest to highest) of the six participating codes' results, at every position where at least five
+    report."""
+    start = time.perf_counter()
+    days = [1.0, 10.0, 30.0, 60.0]
+    brick, mortar, insulation = hamstad5_materials()
+    grid = make_grid(
+        [Layer(brick, 0.365), Layer(mortar, 0.015), Layer(insulation, 0.040)], first=1e-4, ratio=1.2, max_cell=5e-3
+    )
+    ext = Boundary("air", 0.0, 0.8, h=25.0, beta=1.8382e-7)
+    inn = Boundary("air", 20.0, 0.6, h=8.0, beta=5.8823e-8)
+    res = solve(grid, ext, inn, 25.0, 0.6, [d * DAY for d in days], dt_max=HOUR)
+    ref = _table("hamstad5_participants.csv")
+    env = ref.groupby("x_mm").agg(
+        n=("w", "count"), w_lo=("w", "min"), w_hi=("w", "max"), phi_lo=("phi", "min"), phi_hi=("phi", "max")
+    )
+    env = env[env["n"] >= 5]
+    k = days.index(60.0)
+    rows = []
+    for x_mm, e in env.iterrows():
+        x = x_mm / 1000.0
+        for q, values, lo, hi in (
+            ("water_content", res.water_content, e["w_lo"], e["w_hi"]),
+            ("relative_humidity", res.relative_humidity, e["phi_lo"], e["phi_hi"]),
+        ):
+            rows.append(
+                {
+                    "case": "hamstad5",
+                    "quantity": q,
+                    "day": 60.0,
+                    "x_m": x,
+                    "value": _profile_at(res, k, x, values),
+                    "lower": lo,
+                    "upper": hi,
+                }
+            )
+    rows += _balance_rows("hamstad5", res, np.array(days))
+    return _finish("hamstad5", rows, res, start)
+
+
+def _finish(name: str, rows: list[dict], res: HamResult, start: float) -> CaseRun:
+    checks = pd.DataFrame(rows, columns=["case", "quantity", "day", "x_m", "value", "lower", "upper"])
+    checks["passed"] = (checks["value"] >= checks["lower"]) & (checks["value"] <= checks["upper"])
+    return CaseRun(name, checks, _profiles(res), res, time.perf_counter() - start)
+
+
+CASES = {"en15026": en15026, "hamstad2": hamstad2, "hamstad5": hamstad5}
+#: cases of the benchmark set that cannot run yet, and why
+UNAVAILABLE = {
+    "hamstad1": "needs the benchmark's hourly climate file (exterior equivalent temperature, interior temperature, "
+    "vapour pressures), which is not among the bundled reference data"
+}
+
+
+def run_case(name: str) -> CaseRun:
+    """Run one verification case by name."""
+    if name in UNAVAILABLE:
+        raise StudyError([f"case {name!r}: not available: {UNAVAILABLE[name]}"])
+    if name not in CASES:
+        raise StudyError([f"case {name!r}: unknown; the cases are {', '.join([*CASES, *UNAVAILABLE])}"])
+    return CASES[name]()

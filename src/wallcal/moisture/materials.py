@@ -1,0 +1,243 @@
+"""Hygric material functions, tabulated on one grid of the moisture potential.
+
+The engine's moisture potential is ``u = ln(pc)``, the logarithm of the capillary suction ``pc`` [Pa]
+(positive). Suction and relative humidity are tied by Kelvin's relation at the reference temperature
+(EN 15026 and HAMSTAD keep the sorption isotherm temperature independent)::
+
+    pc = -rho_w R_v T_ref ln(phi)
+
+so ``u`` is continuous across layer interfaces (as ``phi`` is) and covers the whole range from nearly
+saturated (``pc = 1 Pa``, ``phi = 1 - 7e-9``) to dry (``pc = 1e11 Pa``) with even resolution.
+
+A :class:`HygricMaterial` is built from Python callables (the storage function, the liquid conductivity or
+moisture diffusivity, the vapour resistance factor) and tabulated on :data:`U_GRID`; the numba kernel only
+interpolates tables, so any material form runs in the same compiled code. The tables are
+
+- ``w``: water content [kg/m3],
+- ``kirchhoff``: the liquid Kirchhoff potential ``Phi(u) = int_0^pc K_l dpc'`` [kg/(m s)]; the liquid flux
+  between two points of one material is ``(Phi_2 - Phi_1) / dx`` towards the higher suction, exact for any
+  ``K_l(pc)``,
+- ``delta_ref``: the vapour permeability at ``T_ref`` [s]; the kernel scales it by ``T_ref / T`` (the
+  ``M_w / (R T)`` factor of EN 15026 with a fixed diffusion coefficient in air).
+
+Bad input raises :class:`~wallcal.errors.StudyError` with one line naming the material and the problem.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import StudyError
+
+R_GAS = 8.314  # J/(mol K)
+M_WATER = 0.018  # kg/mol
+R_V = R_GAS / M_WATER  # J/(kg K), the specific gas constant of water vapour
+RHO_W = 1000.0  # kg/m3
+T_REF = 293.15  # K
+GRAVITY = 9.81  # m/s2
+D_AIR = 26.1e-6  # m2/s, vapour diffusion coefficient in air (HAMSTAD, EN 15026)
+C_WATER = 4186.0  # J/(kg K), liquid water
+KELVIN = RHO_W * R_V * T_REF  # Pa: pc = -KELVIN ln(phi)
+
+U_MIN = 0.0  # ln(1 Pa)
+U_MAX = float(np.log(1e11))
+N_TABLE = 4097
+U_GRID = np.linspace(U_MIN, U_MAX, N_TABLE)
+DU = float(U_GRID[1] - U_GRID[0])
+
+
+def suction_from_rh(phi):
+    """Capillary suction [Pa] in equilibrium with the relative humidity ``phi`` (fraction), at T_ref."""
+    return -KELVIN * np.log(phi)
+
+
+def rh_from_suction(pc):
+    """Relative humidity (fraction) in equilibrium with the suction ``pc`` [Pa], at T_ref."""
+    return np.exp(-np.asarray(pc, dtype=float) / KELVIN)
+
+
+def potential_from_rh(phi):
+    """The engine's potential ``u = ln(pc)`` for a relative humidity (fraction, < 1)."""
+    phi = np.minimum(np.asarray(phi, dtype=float), 1.0 - 1e-9)
+    return np.log(suction_from_rh(phi))
+
+
+def saturation_pressure(t_c):
+    """Saturation vapour pressure [Pa] at ``t_c`` [degC] (EN ISO 13788 / EN 15026 formula)."""
+    t_c = np.asarray(t_c, dtype=float)
+    return np.where(
+        t_c >= 0.0, 610.5 * np.exp(17.269 * t_c / (237.3 + t_c)), 610.5 * np.exp(21.875 * t_c / (265.5 + t_c))
+    )
+
+
+# ============================================================================ storage functions
+def van_genuchten(w_sat: float, modes: list[tuple[float, float, float, float]]) -> Callable:
+    """Multimodal van Genuchten retention ``w(pc) = w_sat sum_i k_i / (1 + (a_i pc)^n_i)^m_i``.
+
+    ``modes`` are ``(k_i, a_i [1/Pa], n_i, m_i)`` (HAMSTAD, EN 15026 Annex A)."""
+
+    def w(pc):
+        pc = np.asarray(pc, dtype=float)
+        total = np.zeros_like(pc)
+        for k, a, n, m in modes:
+            total = total + k / (1.0 + (a * pc) ** n) ** m
+        return w_sat * total
+
+    return w
+
+
+def exp_polynomial(coefficients: list[float], shift: float = 0.0, scale: float = 1.0) -> Callable:
+    """``K(w) = exp(sum_i c_i ((w - shift) / scale)^i)``: the liquid conductivities of EN 15026 / HAMSTAD."""
+
+    def k(w):
+        x = (np.asarray(w, dtype=float) - shift) / scale
+        return np.exp(np.polyval(list(reversed(coefficients)), x))
+
+    return k
+
+
+def resistance_factor_hamstad(mu_dry: float, w_sat: float, p: float) -> Callable:
+    """``mu(w) = mu_dry / f(w)``, ``f = (1 - w/w_sat) / ((1 - p)(1 - w/w_sat)^2 + p)`` (HAMSTAD, EN 15026).
+
+    ``f`` vanishes at saturation; the factor is capped at ``1e6 mu_dry`` there."""
+
+    def mu(w):
+        s = np.clip(1.0 - np.asarray(w, dtype=float) / w_sat, 0.0, 1.0)
+        f = s / ((1.0 - p) * s * s + p)
+        return mu_dry / np.maximum(f, 1e-6)
+
+    return mu
+
+
+# ============================================================================ the material
+@dataclass
+class HygricMaterial:
+    """One material's hygrothermal functions, checked and tabulated on :data:`U_GRID`.
+
+    Parameters
+    ----------
+    name : str
+        Used in error messages.
+    storage : callable
+        ``w(pc)`` [kg/m3] for suction ``pc`` [Pa]; must be non-increasing in ``pc`` and non-negative.
+    lambda_dry, lambda_w, lambda_t : float
+        Thermal conductivity ``lambda = lambda_dry + lambda_w w + lambda_t T`` [W/(m K)], ``lambda_w`` per
+        kg/m3, ``lambda_t`` per K (``T`` in degC: ``lambda_dry`` is the dry value at 0 degC).
+    rho_c_dry : float
+        Volumetric heat capacity of the dry material [J/(m3 K)] (the water's ``c_w w`` is added).
+    resistance_factor : callable or float
+        Vapour resistance factor ``mu(w)`` (>= 1); or give ``vapour_permeability`` instead.
+    vapour_permeability : float, optional
+        A constant vapour permeability ``delta_p`` [s] (HAMSTAD 2).
+    liquid_conductivity : callable, optional
+        ``K_l(w)`` [s], the liquid flux being ``K_l grad(pc)`` towards the higher suction.
+    moisture_diffusivity : callable, optional
+        ``D_w(w)`` [m2/s], the liquid flux being ``-D_w grad(w)``. At most one of the two; neither is a
+        capillary-inactive material.
+    """
+
+    name: str
+    storage: Callable
+    lambda_dry: float
+    rho_c_dry: float
+    lambda_w: float = 0.0
+    lambda_t: float = 0.0
+    resistance_factor: Callable | float | None = None
+    vapour_permeability: float | None = None
+    liquid_conductivity: Callable | None = None
+    moisture_diffusivity: Callable | None = None
+    w: np.ndarray = field(init=False, repr=False)
+    kirchhoff: np.ndarray = field(init=False, repr=False)
+    delta_ref: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        where = f"material {self.name!r}"
+        if not (self.lambda_dry > 0 and np.isfinite(self.lambda_dry)):
+            raise StudyError([f"{where}: dry thermal conductivity must be > 0, got {self.lambda_dry}"])
+        if not (np.isfinite(self.lambda_w) and np.isfinite(self.lambda_t)):
+            raise StudyError([f"{where}: lambda_w and lambda_t must be finite"])
+        if not (self.rho_c_dry > 0 and np.isfinite(self.rho_c_dry)):
+            raise StudyError([f"{where}: dry volumetric heat capacity must be > 0, got {self.rho_c_dry}"])
+        if self.liquid_conductivity is not None and self.moisture_diffusivity is not None:
+            raise StudyError([f"{where}: give liquid_conductivity or moisture_diffusivity, not both"])
+        pc = np.exp(U_GRID)
+        w = np.asarray(self.storage(pc), dtype=float)
+        if w.shape != pc.shape or not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise StudyError([f"{where}: storage function must give finite water contents >= 0 kg/m3"])
+        rising = np.flatnonzero(np.diff(w) > 1e-9 * max(1.0, float(w[0])))
+        if rising.size:
+            k = int(rising[0])
+            raise StudyError(
+                [
+                    f"{where}: storage function is not monotone: w rises from {w[k]:.6g} to {w[k + 1]:.6g} kg/m3 "
+                    f"as the relative humidity falls to {float(rh_from_suction(pc[k + 1])):.6g}"
+                ]
+            )
+        self.w = w
+        # vapour permeability at T_ref
+        if self.vapour_permeability is not None:
+            if not self.vapour_permeability >= 0:
+                raise StudyError([f"{where}: vapour permeability must be >= 0 s, got {self.vapour_permeability}"])
+            self.delta_ref = np.full_like(w, float(self.vapour_permeability))
+        else:
+            if self.resistance_factor is None:
+                raise StudyError([f"{where}: needs a vapour resistance factor or a vapour permeability"])
+            mu = self.resistance_factor
+            mu = np.full_like(w, float(mu)) if np.isscalar(mu) else np.asarray(mu(w), dtype=float)
+            bad = ~np.isfinite(mu) | (mu < 1.0)
+            if np.any(bad):
+                k = int(np.flatnonzero(bad)[0])
+                raise StudyError(
+                    [f"{where}: vapour resistance factor must be >= 1, got {mu[k]:.6g} at w = {w[k]:.6g} kg/m3"]
+                )
+            self.delta_ref = D_AIR / (R_V * T_REF) / mu
+        self.kirchhoff = self._kirchhoff(pc, w, where)
+
+    def _kirchhoff(self, pc, w, where) -> np.ndarray:
+        if self.liquid_conductivity is None and self.moisture_diffusivity is None:
+            return np.zeros_like(w)
+        if self.moisture_diffusivity is not None:
+            # dPhi = K dpc = -D_w dw (trapezoid in w: exact for a constant D_w)
+            d = np.asarray(self.moisture_diffusivity(w), dtype=float)
+            inc = -0.5 * (d[1:] + d[:-1]) * np.diff(w)
+        else:
+            # dPhi = K pc du, integrated on a 8x finer grid of u
+            fine = np.linspace(U_MIN, U_MAX, 8 * (N_TABLE - 1) + 1)
+            pcf = np.exp(fine)
+            g = np.asarray(self.liquid_conductivity(np.asarray(self.storage(pcf), dtype=float)), dtype=float) * pcf
+            if not np.all(np.isfinite(g)) or np.any(g < 0):
+                raise StudyError([f"{where}: liquid conductivity must be finite and >= 0 s"])
+            seg = 0.5 * (g[1:] + g[:-1]) * np.diff(fine)
+            inc = seg.reshape(N_TABLE - 1, 8).sum(axis=1)
+        if not np.all(np.isfinite(inc)) or np.any(inc < 0):
+            raise StudyError([f"{where}: liquid transport must be finite and >= 0"])
+        return np.concatenate(([0.0], np.cumsum(inc)))
+
+    # Python-side evaluation (the kernel has its own copies)
+    def water_content(self, u):
+        """``w`` [kg/m3] at the potential ``u = ln(pc)`` (table interpolation, as in the kernel)."""
+        return np.interp(u, U_GRID, self.w)
+
+    def water_content_from_rh(self, phi):
+        """``w`` [kg/m3] at relative humidity ``phi`` (fraction)."""
+        return self.water_content(potential_from_rh(phi))
+
+    def potential_from_water_content(self, w):
+        """The potential ``u`` at which the storage function gives ``w`` (inverse of the table)."""
+        wt = self.w[::-1]
+        ut = U_GRID[::-1]
+        w = np.clip(np.asarray(w, dtype=float), wt[0], wt[-1])
+        return np.interp(w, wt, ut)
+
+
+def stack_tables(materials: list[HygricMaterial]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's per-material arrays: ``w``, ``kirchhoff``, ``delta_ref`` (rows) and ``(lambda_dry,
+    lambda_w, rho_c_dry, lambda_t)`` per material."""
+    w = np.vstack([m.w for m in materials])
+    kir = np.vstack([m.kirchhoff for m in materials])
+    dlt = np.vstack([m.delta_ref for m in materials])
+    thermal = np.array([[m.lambda_dry, m.lambda_w, m.rho_c_dry, m.lambda_t] for m in materials], dtype=float)
+    return w, kir, dlt, thermal
