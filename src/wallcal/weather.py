@@ -111,12 +111,10 @@ def resolve_weather(weather: str, base_dir: Path | None = None) -> Path:
             ]
         )
     hint = closest(weather, shipped)
-    head = f"retrofit.weather: {clip(weather, 40)!r} not found (neither next to the study nor shipped)"
-    if hint.startswith("did you"):
-        raise StudyError([f"{head}; {hint}"])
-    # one printed line of at most MAX_LINE characters ("wallcal: error: " included): the shipped names as far as
-    # they fit
-    head = f"retrofit.weather: {clip(weather, 40)!r} not found; shipped: "
+    # one printed line of at most MAX_LINE characters ("wallcal: error: " included): the closest shipped name,
+    # then the shipped names as far as they fit
+    head = f"retrofit.weather: {clip(weather, 40)!r} not found"
+    head += f" ({hint}); shipped: " if hint.startswith("did you") else "; shipped: "
     raise StudyError([head + clip(", ".join(shipped), MAX_LINE - len("wallcal: error: ") - len(head))])
 
 
