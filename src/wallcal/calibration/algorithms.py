@@ -83,6 +83,8 @@ _AT_LEAST_ONE = ("particles", "mesh_divisions", "mesh_divider")
 #: real-valued settings that may be 0 (the others must be > 0)
 _MAY_BE_ZERO = ("min_improvement", "tol", "xatol", "fatol", "cognitive", "social")
 TOPOLOGIES = ("vonneumann", "gbest")
+#: algorithms without a generation state (all but pso-hj) save their checkpoint this often [s]
+AUTOSAVE_SECONDS = 1.0
 
 
 def check_settings(algorithm: str, user: dict, path: str, problems: Problems) -> dict:
@@ -221,7 +223,7 @@ class Recorder:
             self._end_replay()
         if self.progress:
             self.progress.update(f"{self.phase} evaluations {self.evaluations}, best {self.best_f:.6g}")
-        if self.autosave and time.perf_counter() - self.last_save > 2.0:
+        if self.autosave and time.perf_counter() - self.last_save > AUTOSAVE_SECONDS:
             self.save(None)  # algorithms without a resumable state: keep the best point on disk
         return vals
 

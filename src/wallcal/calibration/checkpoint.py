@@ -110,7 +110,8 @@ def _read(path: Path) -> dict:
     except RecursionError:
         raise CheckpointError(path, "not a checkpoint (nested too deeply)") from None
     if not isinstance(data, dict):
-        raise CheckpointError(path, f"holds a JSON {type(data).__name__}, not a table of checkpoint entries")
+        kind = {list: "list", str: "string", bool: "true/false", type(None): "null"}.get(type(data), "number")
+        raise CheckpointError(path, f"holds a JSON {kind}, not a table of checkpoint entries")
     return data
 
 
