@@ -33,7 +33,9 @@ PHASES = ("", "particle swarm", "Hooke-Jeeves", "least-squares polish")
 PSO_HJ_STATES = ("pso", "hj", "polish", "done")
 #: algorithms resumed by replaying their log of batch values from the seed (deterministic)
 REPLAYED = ("differential-evolution", "nelder-mead", "cma-es")
-AFRESH = "start afresh: rerun without --resume (the file is then replaced)"
+AFRESH = "to start afresh, rerun without --resume"
+#: the longest message: the CLI's line ("wallcal: error: " + message) stays within 300 characters
+MAX_MESSAGE = 300 - len("wallcal: error: ")
 
 
 class CheckpointError(WallcalError):
@@ -42,9 +44,9 @@ class CheckpointError(WallcalError):
     def __init__(self, path, problem: str, fix: str = AFRESH):
         where = str(path)
         msg = f"{where}: not a usable checkpoint: {problem}; {fix}"
-        if len(msg) > 300:  # keep the line short: the file's name instead of its whole path
+        if len(msg) > MAX_MESSAGE:  # keep the line short: the file's name instead of its whole path
             msg = f"{Path(where).name}: not a usable checkpoint: {problem}; {fix}"
-        super().__init__(msg[:300])
+        super().__init__(msg[:MAX_MESSAGE])
 
 
 def checkpoint_path(out_dir) -> Path | None:
@@ -81,7 +83,7 @@ def _read(path: Path) -> dict:
         raise CheckpointError(path, f"cannot be read ({exc.strerror})") from None
     if stat.S_ISLNK(st.st_mode):
         raise CheckpointError(
-            path, "is a symbolic link (wallcal writes a plain file)", "remove the link to start afresh"
+            path, "is a symbolic link (wallcal writes a plain file)", "remove it and rerun without --resume"
         )
     if stat.S_ISDIR(st.st_mode):
         raise CheckpointError(path, "is a directory", "remove it and rerun without --resume to start afresh")
@@ -273,6 +275,5 @@ def check_values(path: Path, data: dict, objective, name: str = "objective") -> 
         which = "its best point" if i == 0 else f"particle best {i - 1}"
         raise CheckpointError(
             path,
-            f"{which} gives {name} {got[i]:.9g}, not the stored {want[i]:.9g} (altered, or made with other "
-            "inputs or another wallcal)",
+            f"{which} gives {name} {got[i]:.9g}, not the stored {want[i]:.9g} (altered, or other inputs)",
         )
