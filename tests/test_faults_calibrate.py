@@ -567,3 +567,51 @@ def test_resume_without_a_checkpoint(pso, tmp_path):
     r = cli("calibrate", study, "--out", tmp_path / "cal", "--quiet", "--resume", cwd=tmp_path)
     assert r.code == 0 and "nothing to resume" in r.out, r.out
     assert leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize(
+    "algorithm,settings",
+    [("differential-evolution", {"maxiter": 12, "popsize": 2}), ("nelder-mead", {"maxfev": 120}), ("cma-es", {})],
+)
+def test_replayed_algorithms_resume_to_the_uninterrupted_result(pso, tmp_path, algorithm, settings):
+    """Library: interrupted (Ctrl-C) after a few batches, the run resumes by replaying its logged batches from the
+    seed: the same optimum, objective, evaluations and history values as the uninterrupted run. A log altered so
+    that the replay cannot reach the stored best point is refused."""
+    import numpy as np
+
+    from wallcal import load_study
+    from wallcal.calibration import calibrate
+    from wallcal.calibration.checkpoint import CheckpointError
+    from wallcal.calibration.objective import Evaluator
+
+    settings = settings or {"maxfevals": 120, "popsize": 6}
+    study = load_study(pso[0])
+    full = calibrate(study, algorithm=algorithm, settings=settings, progress=False)
+    out = tmp_path / "cal"
+    calls = {"n": 0}
+    orig = Evaluator.objective
+
+    def flaky(self, X):
+        calls["n"] += 1
+        if calls["n"] == 8:
+            raise KeyboardInterrupt
+        return orig(self, X)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Evaluator, "objective", flaky)
+        part = calibrate(study, algorithm=algorithm, settings=settings, progress=False, out_dir=out)
+    assert part.status == "interrupted"
+    ckpt = tmp_path / ".cal.checkpoint.json"
+    saved = json.loads(ckpt.read_text())
+    assert saved["state"] is None and len(saved["log"]) >= 5
+    good = ckpt.read_text()
+    forged = {**saved, "log": [[1.0] + saved["log"][0][1:]] + saved["log"][1:]}  # a better base case than real
+    ckpt.write_text(json.dumps(forged))
+    with pytest.raises(CheckpointError, match="does not retrace its log"):
+        calibrate(study, algorithm=algorithm, settings=settings, progress=False, out_dir=out, resume=True)
+    ckpt.write_text(good)
+    done = calibrate(study, algorithm=algorithm, settings=settings, progress=False, out_dir=out, resume=True)
+    assert done.status == "complete"
+    np.testing.assert_array_equal(done.x_opt, full.x_opt)
+    assert done.f_opt == full.f_opt and done.evaluations == full.evaluations
+    assert [(e, f) for e, _, f in done.history] == [(e, f) for e, _, f in full.history]
