@@ -555,7 +555,7 @@ def test_stale_temporary_directories_are_cleaned(tmp_path):
     (old / "manifest.json").write_text("{}")
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
-    (tmp_path / f".cal.lock.{dead.pid}").write_text(str(dead.pid))
+    (tmp_path / f".cal.lock.{dead.pid}.1234").write_text(str(dead.pid))
     (tmp_path / ".other.tmp-x").mkdir()  # another output's: not ours
     assert sorted(clean_stale(out)) == [".cal.old-999999", ".cal.tmp-abc123"]
     assert (out / "manifest.json").is_file()  # the previous result, back in place

@@ -17,6 +17,7 @@ import json
 import os
 import shutil
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -96,7 +97,7 @@ def _clean(target: Path) -> list[str]:
             shutil.rmtree(p, ignore_errors=True)
         done.append(p.name)
     for p in target.parent.glob(f".{name}.lock.*"):  # a lock being made by a run that was killed
-        pid = p.name.rsplit(".", 1)[-1]
+        pid = p.name[len(f".{target.name}.lock.") :].split(".")[0]
         if pid.isdigit() and not _alive(int(pid)):
             p.unlink(missing_ok=True)
     return done
@@ -129,7 +130,7 @@ def _take(lock: Path) -> bool:
     """Create ``lock`` holding our pid, atomically (a file written aside, then hard-linked: it never exists
     empty); False when it exists."""
     pid = str(os.getpid())
-    aside = lock.with_name(f"{lock.name}.{pid}")
+    aside = lock.with_name(f"{lock.name}.{pid}.{threading.get_ident()}")
     try:
         aside.write_text(pid)
         try:
