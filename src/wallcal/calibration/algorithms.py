@@ -39,6 +39,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -250,9 +251,15 @@ class Recorder:
         }
         if self.log is not None:
             data["log"] = self.log
-        tmp = self.checkpoint.with_name(self.checkpoint.name + ".tmp")
-        tmp.write_text(json.dumps(data, default=float))
-        os.replace(tmp, self.checkpoint)
+        # a new file of our own (never one planted at a fixed name), then renamed over the checkpoint
+        fd, tmp = tempfile.mkstemp(prefix=f"{self.checkpoint.name}.", suffix=".tmp", dir=self.checkpoint.parent)
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(json.dumps(data, default=float))
+            os.replace(tmp, self.checkpoint)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
         self.last_save = time.perf_counter()
 
     def restore(self, data: dict):

@@ -66,7 +66,9 @@ def remove(path: Path | None) -> None:
     """Delete a checkpoint and its temporary file (after the outputs are in place)."""
     if path is None:
         return
-    for p in (path, path.with_name(path.name + ".tmp")):
+    import glob
+
+    for p in [path, *path.parent.glob(f"{glob.escape(path.name)}.*.tmp")]:
         if p.is_file() or p.is_symlink():
             p.unlink(missing_ok=True)
 
@@ -243,7 +245,7 @@ def _check_pso_hj_state(path, st, n, settings, best_f) -> None:
             raise CheckpointError(path, "best_f is above the swarm's best (state.pbest_f)")
     elif ph == "hj":
         _array(path, st, "base", (n,), unit=True, at="state.")
-        _number(path, st, "step", lo=1e-300, hi=1.0, at="state.")
+        _number(path, st, "step", lo=1e-300, hi=float(settings["hj_initial_step"]), at="state.")
         _number(path, st, "reductions", whole=True, lo=0, hi=int(settings["step_reductions"]) + 1, at="state.")
     if "cache_keys" in st or "cache_values" in st:
         keys = st.get("cache_keys")
