@@ -329,6 +329,9 @@ def _tamper(d: dict, case: str):
         "strings": json.dumps({**d, "best_u": [str(x) for x in d["best_u"]]}),
         "other-seed": json.dumps({**d, "seed": d["seed"] + 1}),
         "old-format": json.dumps({k: v for k, v in d.items() if k != "format"}),
+        "huge-integer": json.dumps({**d, "best_f": 10**400}),
+        "endless-digits": '{"format": 2, "seed": 1' + "0" * 5000 + "}",
+        "deep-nesting": "[" * 100_000 + "]" * 100_000,
     }[case]
 
 
@@ -355,6 +358,9 @@ CASES = [
     ("strings", "best_u must be a list of numbers"),
     ("other-seed", "another seed"),
     ("old-format", "format"),
+    ("huge-integer", "best_f must be a finite number"),
+    ("endless-digits", "digits"),
+    ("deep-nesting", "nested too deeply"),
 ]
 
 

@@ -278,6 +278,11 @@ class Recorder:
         self.replay_end = data
         self.log = []
 
+    def check_replayed(self):
+        """After the algorithm ended: a replay must have used up the checkpoint's log."""
+        if self.replay_end is not None:
+            self._replay_failed("the run ended before its log")
+
     def _replay_failed(self, what: str):
         from .checkpoint import CheckpointError
 

@@ -113,6 +113,8 @@ def _read(path: Path) -> dict:
         ) from None
     except RecursionError:
         raise CheckpointError(path, "not a checkpoint (nested too deeply)") from None
+    except ValueError as exc:  # e.g. an integer of more digits than Python converts
+        raise CheckpointError(path, f"not a checkpoint ({_short(str(exc))})") from None
     if not isinstance(data, dict):
         kind = {list: "list", str: "string", bool: "true/false", type(None): "null"}.get(type(data), "number")
         raise CheckpointError(path, f"holds a JSON {kind}, not a table of checkpoint entries")
@@ -120,7 +122,10 @@ def _read(path: Path) -> dict:
 
 
 def _real(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool)
+    """A JSON number that converts to a float (not a boolean, not an integer beyond the float range)."""
+    if isinstance(v, bool):
+        return False
+    return isinstance(v, float) or (isinstance(v, int) and abs(v) < 2**1000)
 
 
 def _whole(v) -> bool:

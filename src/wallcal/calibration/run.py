@@ -319,8 +319,7 @@ def calibrate(
             alg.nelder_mead(rec, space.n, seed, sett, rec.best_u)
         elif algorithm == "cma-es":
             alg.cma_es(rec, space.n, seed, sett, rec.best_u)
-        if rec.replay_end is not None:
-            rec._replay_failed("the run ended before its log")
+        rec.check_replayed()
         if algorithm != "pso-hj":  # (pso-hj saves its own "done")
             rec.save({"phase": "done"})
     except KeyboardInterrupt:
