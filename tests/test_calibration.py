@@ -214,7 +214,9 @@ def test_interrupt_keeps_best_and_resume_continues(example_study, tmp_path, monk
     assert json.loads((out / "calibration.json").read_text())["status"] == "interrupted"
     monkeypatch.setattr(Evaluator, "objective", orig)
     done = calibrate(example_study, settings=QUICK, progress=False, out_dir=out, resume=True)
-    assert done.status == "complete" and not ckpt.exists()
+    assert done.status == "complete" and ckpt.exists()  # kept until the outputs are in place
+    done.write(out)
+    assert not ckpt.exists()
     np.testing.assert_allclose(done.x_opt, full.x_opt, rtol=0, atol=1e-12)
     assert done.f_opt == pytest.approx(full.f_opt, rel=1e-12)
 

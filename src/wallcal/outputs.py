@@ -3,7 +3,8 @@
 Every command writes into a fresh temporary directory next to the target and
 moves it into place only when complete (:func:`output_dir`). A lock file keeps
 two runs from writing the same target at once; an interrupted run leaves the
-previous result (or nothing) and no temporary directory. Each result carries a
+previous result (or nothing) and no temporary directory, and what a killed run
+leaves (``.NAME.tmp-*``) is removed by the next one (:func:`clean_stale`). Each result carries a
 ``manifest.json`` with the wallcal version, the study file's hash and the
 input data's hash.
 
@@ -15,10 +16,12 @@ reader checks (:func:`check_format`).
 from __future__ import annotations
 
 import contextlib
+import glob
 import json
 import os
 import shutil
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,40 +52,108 @@ def output_dir(target: str | Path, manifest: dict | None = None):
     """
     target = Path(target).resolve()
     target.parent.mkdir(parents=True, exist_ok=True)
-    lock = target.parent / f".{target.name}.lock"
+    with _locked(target):
+        _clean(target)  # we hold the lock: any temporary directory of this target is a killed run's
+        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
+        try:
+            yield tmp
+            info = {"wallcal_version": _version(), "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+            info.update(manifest or {})
+            info.update(format_entries(info.get("command")))
+            (tmp / "manifest.json").write_text(json.dumps(info, indent=2, default=str))
+            old = None
+            if target.exists():
+                old = target.parent / f".{target.name}.old-{os.getpid()}"
+                os.replace(target, old)
+            os.replace(tmp, target)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+
+
+def clean_stale(target: str | Path) -> list[str]:
+    """Remove what killed runs left next to ``target``: temporary directories (``.NAME.tmp-*``) and old copies
+    (``.NAME.old-*``; the old copy is put back when a run was killed between its two renames and ``target`` is
+    missing). Does nothing while a live run holds the target's lock. Returns the names removed or restored."""
+    target = Path(target).resolve()
+    if not target.parent.is_dir():
+        return []
     try:
-        fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-    except FileExistsError:
-        pid = lock.read_text().strip() if lock.exists() else "?"
+        with _locked(target):
+            return _clean(target)
+    except OutputBusyError:
+        return []
+
+
+def _clean(target: Path) -> list[str]:
+    """(under the lock) :func:`clean_stale`'s work."""
+    done = []
+    name = glob.escape(target.name)
+    for p in sorted(target.parent.glob(f".{name}.tmp-*")):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+            done.append(p.name)
+    olds = [p for p in target.parent.glob(f".{name}.old-*") if p.is_dir() and not p.is_symlink()]
+    for p in sorted(olds, key=lambda p: p.stat().st_mtime, reverse=True):
+        if not target.exists() and (p / "manifest.json").is_file():
+            os.replace(p, target)  # killed between moving the previous result away and the new one in
+        else:
+            shutil.rmtree(p, ignore_errors=True)
+        done.append(p.name)
+    for p in target.parent.glob(f".{name}.lock.*"):  # a lock being made by a run that was killed
+        pid = p.name[len(f".{target.name}.lock.") :].split(".")[0]
         if pid.isdigit() and not _alive(int(pid)):
+            p.unlink(missing_ok=True)
+    return done
+
+
+@contextlib.contextmanager
+def _locked(target: Path):
+    """Hold the lock file ``.NAME.lock`` (holding the holder's pid) while writing ``target``; a lock whose
+    holder is dead is taken over."""
+    lock = target.parent / f".{target.name}.lock"
+    if not _take(lock):
+        text = lock.read_text(errors="replace").strip() if lock.is_file() else "?"
+        if not (text.isdigit() and _alive(int(text))):
             lock.unlink(missing_ok=True)  # stale lock from a killed run
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+            if not _take(lock):
+                text = lock.read_text(errors="replace").strip() if lock.is_file() else "?"
+                raise OutputBusyError(f"{target}: another wallcal run (pid {text}) is writing this directory")
         else:
             raise OutputBusyError(
-                f"{target}: another wallcal run (pid {pid}) is writing this directory; wait for it or "
+                f"{target}: another wallcal run (pid {text}) is writing this directory; wait for it or "
                 f"choose another --out"
-            ) from None
-    os.write(fd, str(os.getpid()).encode())
-    os.close(fd)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
+            )
     try:
-        yield tmp
-        info = {"wallcal_version": _version(), "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-        info.update(manifest or {})
-        info.update(format_entries(info.get("command")))
-        (tmp / "manifest.json").write_text(json.dumps(info, indent=2, default=str))
-        old = None
-        if target.exists():
-            old = target.parent / f".{target.name}.old-{os.getpid()}"
-            os.replace(target, old)
-        os.replace(tmp, target)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        yield
     finally:
         lock.unlink(missing_ok=True)
+
+
+def _take(lock: Path) -> bool:
+    """Create ``lock`` holding our pid, atomically (a file written aside, then hard-linked: it never exists
+    empty); False when it exists."""
+    pid = str(os.getpid())
+    aside = lock.with_name(f"{lock.name}.{pid}.{threading.get_ident()}")
+    try:
+        aside.write_text(pid)
+        try:
+            os.link(aside, lock)
+            return True
+        except FileExistsError:
+            return False
+        except OSError:  # no hard links on this file system: exclusive creation
+            try:
+                fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+            except FileExistsError:
+                return False
+            os.write(fd, pid.encode())
+            os.close(fd)
+            return True
+    finally:
+        aside.unlink(missing_ok=True)
 
 
 def _alive(pid: int) -> bool:

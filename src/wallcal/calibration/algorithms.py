@@ -39,6 +39,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,6 +84,8 @@ _AT_LEAST_ONE = ("particles", "mesh_divisions", "mesh_divider")
 #: real-valued settings that may be 0 (the others must be > 0)
 _MAY_BE_ZERO = ("min_improvement", "tol", "xatol", "fatol", "cognitive", "social")
 TOPOLOGIES = ("vonneumann", "gbest")
+#: algorithms without a generation state (all but pso-hj) save their checkpoint this often [s]
+AUTOSAVE_SECONDS = 1.0
 
 
 def check_settings(algorithm: str, user: dict, path: str, problems: Problems) -> dict:
@@ -177,7 +180,10 @@ class Progress:
 class Recorder:
     """Best point, history and checkpoints of one optimisation run.
 
-    ``history`` rows: (evaluations, seconds, best objective).
+    ``history`` rows: (evaluations, seconds, best objective). With ``log`` (a list) every batch's objective
+    values are kept in order and saved in the checkpoint: a deterministic algorithm resumes by running again
+    from its seed while :meth:`start_replay` answers its first batches from that log (no simulation), so it
+    reaches the uninterrupted result within the same budget.
     """
 
     f: callable
@@ -194,19 +200,31 @@ class Recorder:
     phase: str = ""
     autosave: bool = False
     last_save: float = 0.0
+    log: list | None = None
+    replay: list = field(default_factory=list)
+    replay_end: dict | None = None
 
     def __call__(self, U) -> np.ndarray:
         U = np.clip(np.atleast_2d(np.asarray(U, dtype=float)), 0.0, 1.0)
-        vals = np.asarray(self.f(U), dtype=float)
+        if self.replay:
+            vals = np.asarray(self.replay.pop(), dtype=float)  # (the log is stored reversed: pop from the end)
+            if len(vals) != len(U):
+                self._replay_failed(f"batch {len(self.log or [])} had {len(vals)} candidates, the run asks {len(U)}")
+        else:
+            vals = np.asarray(self.f(U), dtype=float)
+        if self.log is not None:
+            self.log.append(vals.tolist())
         self.evaluations += len(U)
         k = int(np.argmin(vals))
         if vals[k] < self.best_f:
             self.best_f = float(vals[k])
             self.best_u = U[k].copy()
         self.history.append((self.evaluations, self.elapsed, self.best_f))
+        if self.replay_end is not None and not self.replay:
+            self._end_replay()
         if self.progress:
             self.progress.update(f"{self.phase} evaluations {self.evaluations}, best {self.best_f:.6g}")
-        if self.autosave and time.perf_counter() - self.last_save > 2.0:
+        if self.autosave and time.perf_counter() - self.last_save > AUTOSAVE_SECONDS:
             self.save(None)  # algorithms without a resumable state: keep the best point on disk
         return vals
 
@@ -215,12 +233,15 @@ class Recorder:
         return self.seconds_before + time.perf_counter() - self.t0
 
     def save(self, state: dict | None = None):
-        """Write the checkpoint atomically (best so far, history, algorithm state)."""
-        if self.checkpoint is None:
-            return
+        """Write the checkpoint atomically (best so far, history, algorithm state, log of batch values)."""
+        if self.checkpoint is None or self.best_u is None or self.replay_end is not None:
+            return  # nothing evaluated yet, or still replaying (the checkpoint on disk is further on)
+        from .checkpoint import FORMAT
+
         data = {
+            "format": FORMAT,
             **self.meta,
-            "best_u": None if self.best_u is None else self.best_u.tolist(),
+            "best_u": self.best_u.tolist(),
             "best_f": self.best_f,
             "evaluations": self.evaluations,
             "seconds": self.elapsed,
@@ -228,17 +249,59 @@ class Recorder:
             "phase": self.phase,
             "state": state,
         }
-        tmp = self.checkpoint.with_name(self.checkpoint.name + ".tmp")
-        tmp.write_text(json.dumps(data))
-        os.replace(tmp, self.checkpoint)
+        if self.log is not None:
+            data["log"] = self.log
+        # a new file of our own (never one planted at a fixed name), then renamed over the checkpoint
+        fd, tmp = tempfile.mkstemp(prefix=f"{self.checkpoint.name}.", suffix=".tmp", dir=self.checkpoint.parent)
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(json.dumps(data, default=float))
+            os.replace(tmp, self.checkpoint)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
         self.last_save = time.perf_counter()
 
     def restore(self, data: dict):
-        self.best_u = None if data.get("best_u") is None else np.array(data["best_u"])
-        self.best_f = float(data.get("best_f", math.inf))
-        self.evaluations = int(data.get("evaluations", 0))
-        self.history = [tuple(h) for h in data.get("history", [])]
-        self.seconds_before = float(data.get("seconds", 0.0))
+        """Continue from a checked checkpoint (:func:`wallcal.calibration.checkpoint.load_checkpoint`)."""
+        self.best_u = np.array(data["best_u"], dtype=float)
+        self.best_f = float(data["best_f"])
+        self.evaluations = int(data["evaluations"])
+        self.history = [tuple(h) for h in data["history"]]
+        self.seconds_before = float(data["seconds"])
+        self.phase = str(data.get("phase", ""))
+
+    def start_replay(self, data: dict):
+        """Answer the next batches from the checkpoint's log; when it is used up, the run must stand exactly
+        where the checkpoint did (evaluations, best point and value), else :class:`CheckpointError`."""
+        self.replay = [list(b) for b in reversed(data["log"])]
+        self.replay_end = data
+        self.log = []
+
+    def check_replayed(self):
+        """After the algorithm ended: a replay must have used up the checkpoint's log."""
+        if self.replay_end is not None:
+            self._replay_failed("the run ended before its log")
+
+    def _replay_failed(self, what: str):
+        from .checkpoint import CheckpointError
+
+        raise CheckpointError(
+            self.checkpoint, f"the run does not retrace its log ({what}): made by another wallcal, or altered"
+        )
+
+    def _end_replay(self):
+        end = self.replay_end
+        if not (
+            self.evaluations == int(end["evaluations"])
+            and self.best_f == float(end["best_f"])
+            and np.array_equal(self.best_u, np.asarray(end["best_u"], dtype=float))
+        ):
+            self._replay_failed("its best point or evaluations differ")
+        self.replay_end = None
+        self.history = [tuple(h) for h in end["history"]]
+        self.seconds_before = float(end["seconds"])
+        self.t0 = time.perf_counter()
 
 
 # ============================================================================ pso-hj
@@ -285,6 +348,17 @@ class _Cache:
                 self.values[keys[i]] = float(v)
         return np.array([self.values[k] for k in keys])
 
+    def to_state(self) -> dict:
+        """The cache as checkpoint entries (so that a resumed run evaluates no point twice, as the uninterrupted
+        one)."""
+        return {"cache_keys": [list(k) for k in self.values], "cache_values": list(self.values.values())}
+
+    def restore(self, state: dict) -> None:
+        keys = state.get("cache_keys") or []
+        self.values = {
+            tuple(int(i) for i in k): float(v) for k, v in zip(keys, state.get("cache_values") or [], strict=True)
+        }
+
 
 def _reflect(x, v):
     over = x > 1.0
@@ -320,6 +394,11 @@ def pso_hj(
         return np.clip(np.round(x / h_mesh) * h_mesh, 0.0, 1.0)
 
     st = state or {}
+    cache.restore(st)
+
+    def save(state: dict) -> None:
+        rec.save({**state, **cache.to_state()})
+
     if st.get("phase", "pso") == "pso":
         if "x" in st:
             x, v = np.array(st["x"]), np.array(st["v"])
@@ -347,7 +426,7 @@ def pso_hj(
             better = fx < pbest_f
             pbest[better] = xm[better]
             pbest_f[better] = fx[better]
-            rec.save(
+            save(
                 {
                     "phase": "pso",
                     "x": x.tolist(),
@@ -359,7 +438,7 @@ def pso_hj(
             )
             rng = np.random.default_rng([seed, gen + 1])
         st = {"phase": "hj", "base": rec.best_u.tolist(), "step": float(s["hj_initial_step"]), "reductions": 0}
-        rec.save(st)
+        save(st)
 
     if st.get("phase") == "hj":
         rec.phase = "Hooke-Jeeves"
@@ -402,14 +481,14 @@ def pso_hj(
             else:
                 step /= float(s["mesh_divider"])
                 reductions += 1
-            rec.save({"phase": "hj", "base": base.tolist(), "step": step, "reductions": reductions})
+            save({"phase": "hj", "base": base.tolist(), "step": step, "reductions": reductions})
         st = {"phase": "polish"}
-        rec.save(st)
+        save(st)
 
     if st.get("phase") == "polish" and s.get("polish", True) and residuals is not None:
         rec.phase = "least-squares polish"
         least_squares_refine(rec, residuals, rec.best_u, max_jacobians=int(s["polish_max_evaluations"]))
-    rec.save({"phase": "done"})
+    rec.save({"phase": "done"})  # (the cache is no longer needed)
 
 
 # ============================================================================ least squares

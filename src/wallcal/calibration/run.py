@@ -24,6 +24,8 @@ from ..errors import StudyError, WallcalError
 from ..simulation import BATCH_NEEDS, Prepared, prepare, simulate
 from ..study import Study, dump_wall, load_wall
 from . import algorithms as alg
+from .checkpoint import REPLAYED, CheckpointError, check_values, checkpoint_path, load_checkpoint, present
+from .checkpoint import remove as remove_checkpoint
 from .objective import Evaluator
 from .space import ALGORITHMS, ParameterSpace, space_of
 
@@ -80,6 +82,7 @@ class CalibrationResult:
     floors: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     refinement: object = None
+    checkpoint: Path | None = None
 
     # ------------------------------------------------------------------ reporting
     def parameter_table(self) -> pd.DataFrame:
@@ -145,6 +148,9 @@ class CalibrationResult:
 
         with output_dir(out_dir, manifest=manifest_of(self.study, "calibrate")) as tmp:
             self.write_into(Path(tmp))
+        # the checkpoint goes only now that the outputs are in place (a kill before this line resumes from it)
+        if self.status == "complete" and self.checkpoint is not None and checkpoint_path(out_dir) == self.checkpoint:
+            remove_checkpoint(self.checkpoint)
         return Path(out_dir)
 
     def write_into(self, d: Path) -> None:
@@ -174,12 +180,24 @@ class CalibrationResult:
 
 
 # ============================================================================ the run
-def _checkpoint_path(out_dir: Path | None) -> Path | None:
-    if out_dir is None:
-        return None
-    out_dir = Path(out_dir).resolve()
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    return out_dir.parent / f".{out_dir.name}.checkpoint.json"
+def complete_output(out_dir, study: Study) -> bool:
+    """Whether ``out_dir`` holds a complete calibration of ``study`` (status complete, its manifest naming the
+    same study file and data)."""
+    out_dir = Path(out_dir)
+    try:
+        man = json.loads((out_dir / "manifest.json").read_text())
+        cal = json.loads((out_dir / "calibration.json").read_text())
+        from ..data import data_sha256
+
+        return (
+            isinstance(man, dict)
+            and isinstance(cal, dict)
+            and cal.get("status") == "complete"
+            and man.get("study_sha256") == study.sha256
+            and man.get("data_sha256") == data_sha256(study)
+        )
+    except (OSError, ValueError):
+        return False
 
 
 def calibrate(
@@ -208,9 +226,12 @@ def calibrate(
     seed : int, optional
     out_dir : path, optional
         Where results will be written; its checkpoint file sits next to it
-        (``.<name>.checkpoint.json``), updated after every generation.
+        (``.<name>.checkpoint.json``), updated after every generation. It stays after the run and
+        :meth:`CalibrationResult.write` into ``out_dir`` deletes it once the outputs are in place.
     resume : bool
-        Continue from the checkpoint of ``out_dir``.
+        Continue from the checkpoint of ``out_dir``. The checkpoint is checked first
+        (:mod:`wallcal.calibration.checkpoint`: its kind, format, entries, and its best point re-evaluated);
+        a bad one is a :class:`~wallcal.calibration.checkpoint.CheckpointError`.
     progress : bool
         Show a progress line on stderr.
     refine : bool, optional
@@ -232,6 +253,24 @@ def calibrate(
     user_settings.update(settings or {})
     sett = alg.settings_for(algorithm, user_settings)
     seed = space.seed if seed is None else int(seed)
+    ckpt = checkpoint_path(out_dir)
+    meta = {
+        "algorithm": algorithm,
+        "seed": seed,
+        "settings": sett,
+        "parameters": space.names,
+        "study_sha256": study.sha256,
+        "data_sha256": _data_hash(study) if ckpt is not None else None,
+    }
+    data = None
+    if resume:
+        if not present(ckpt):
+            raise WallcalError(f"nothing to resume: no checkpoint {ckpt} (run without --resume)")
+        data = load_checkpoint(ckpt, meta, space.n, sett)  # before any simulation: a bad file is refused at once
+    elif present(ckpt) and ckpt.is_dir() and not ckpt.is_symlink():
+        raise CheckpointError(ckpt, "a directory stands where the checkpoint goes", "remove it to calibrate")
+    if ckpt is not None:
+        ckpt.parent.mkdir(parents=True, exist_ok=True)
     prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="calibration")
     ev = Evaluator(prepared, space)
 
@@ -241,36 +280,37 @@ def calibrate(
     def residuals(U):  # (objective, residuals) from one batch
         return ev.objective_and_residuals(space.from_unit(U))
 
-    ckpt = _checkpoint_path(out_dir)
-    meta = {
-        "algorithm": algorithm,
-        "seed": seed,
-        "settings": sett,
-        "parameters": space.names,
-        "study_sha256": study.sha256,
-    }
     prog = alg.Progress(f"calibrate ({algorithm})", enabled=progress)
-    rec = alg.Recorder(f=f, n=space.n, progress=prog, checkpoint=ckpt, meta=meta, autosave=algorithm != "pso-hj")
+    replayed = algorithm in REPLAYED
+    rec = alg.Recorder(
+        f=f,
+        n=space.n,
+        progress=prog,
+        checkpoint=ckpt,
+        meta=meta,
+        autosave=algorithm != "pso-hj",
+        log=[] if replayed else None,
+    )
     state = None
-    if resume:
-        if ckpt is None or not ckpt.exists():
-            raise WallcalError(f"nothing to resume: no checkpoint {ckpt} (run without --resume)")
-        data = json.loads(ckpt.read_text())
-        for key in ("algorithm", "seed", "parameters", "study_sha256"):
-            if data.get(key) != meta[key]:
-                raise WallcalError(
-                    f"{ckpt}: the checkpoint was made with another {key} "
-                    f"({data.get(key)!r} != {meta[key]!r}); run without --resume"
-                )
-        rec.restore(data)
+    if data is not None:
+        check_values(ckpt, data, f, space.objective)  # its best point must give its stored value
         state = data.get("state")
+        if replayed and state is None:
+            rec.start_replay(data)  # run again from the seed, the logged batches answered from the log
+        else:
+            rec.restore(data)
+            if replayed:
+                rec.log = list(data["log"])
     u0 = space.to_unit(space.base)
     f_base = float(ev.objective(space.base[None])[0])
     status = "complete"
+    done = isinstance(state, dict) and state.get("phase") == "done"
     try:
         if rec.best_u is None:
             rec(u0[None])
-        if algorithm == "pso-hj":
+        if done and algorithm != "pso-hj":
+            pass  # finished before: only the outputs are missing
+        elif algorithm == "pso-hj":
             alg.pso_hj(rec, space.n, seed, sett, u0, residuals=residuals, state=state)
         elif algorithm == "least-squares":
             alg.least_squares_only(rec, residuals, sett, rec.best_u)
@@ -280,6 +320,9 @@ def calibrate(
             alg.nelder_mead(rec, space.n, seed, sett, rec.best_u)
         elif algorithm == "cma-es":
             alg.cma_es(rec, space.n, seed, sett, rec.best_u)
+        rec.check_replayed()
+        if algorithm != "pso-hj":  # (pso-hj saves its own "done")
+            rec.save({"phase": "done"})
     except KeyboardInterrupt:
         status = "interrupted"
         if algorithm != "pso-hj":  # pso-hj's checkpoint already holds its last complete generation
@@ -301,9 +344,17 @@ def calibrate(
             f"refined with EnergyPlus from the fast engine's optimum in {ref.runs} EnergyPlus runs: EnergyPlus "
             f"objective {ref.f_start:.6g} -> {ref.f_opt:.6g} (energyplus_wall.toml, energyplus_refinement.csv)"
         )
-    if status == "complete" and ckpt is not None and ckpt.exists():
-        ckpt.unlink()
+    result.checkpoint = ckpt  # deleted by result.write(out_dir) once the outputs are in place
     return result
+
+
+def _data_hash(study: Study) -> str | None:
+    from ..data import data_sha256
+
+    try:
+        return data_sha256(study)
+    except OSError:
+        return None
 
 
 def _finish(study, space, prepared, ev, algorithm, sett, seed, f_base, x_opt, rec, status) -> CalibrationResult:

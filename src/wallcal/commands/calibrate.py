@@ -83,14 +83,27 @@ def register(sub) -> None:
 def run_calibrate(args) -> int:
     if len(args.studies) > 1:
         return calibrate_studies(args)
+    import sys
+
     from ..calibration import calibrate
+    from ..calibration.checkpoint import checkpoint_path, present
+    from ..calibration.run import complete_output
+    from ..outputs import clean_stale
     from ..study import load_study
 
     study = load_study(args.studies[0])
     out = Path(args.out) if args.out else Path(args.studies[0]).resolve().parent / "calibration"
+    clean_stale(out)  # what a killed run left next to --out (temporary directories)
+    resume = args.resume
+    if resume and not present(checkpoint_path(out)):
+        if complete_output(out, study):
+            print(f"nothing to resume: {out} holds the complete calibration; run without --resume to calibrate again")
+            return 0
+        print(f"no checkpoint of {out} (the run stopped before its first): calibrating from the start", file=sys.stderr)
+        resume = False
     with executor_for(args, out, progress=not args.quiet):
         res = calibrate(
-            study, algorithm=args.algorithm, seed=args.seed, out_dir=out, resume=args.resume, progress=not args.quiet
+            study, algorithm=args.algorithm, seed=args.seed, out_dir=out, resume=resume, progress=not args.quiet
         )
         res.write(out)
     print(
