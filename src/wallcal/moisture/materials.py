@@ -410,7 +410,9 @@ def hygric_material(
     where = where or f"material {name!r}"
     for key in ("moisture_storage", "vapour_resistance_factor"):
         if keys.get(key) is None:
-            raise StudyError([f"{where}: missing hygric key {key!r}"])
+            raise StudyError(
+                [f'{where}: missing hygric key {key!r} (give it, a catalogue material = "..." or a hygric_file)']
+            )
     storage = dict(keys["moisture_storage"])
     w_sat = saturation_content(storage)
     base = storage_function(storage, where)
