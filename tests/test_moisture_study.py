@@ -308,3 +308,70 @@ def test_bad_moisture_input_is_one_line_exit_2_nothing_written(tmp_path, capsys,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and expected in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+CALIBRATION = """
+[calibration]
+targets = ["T1", "RH1"]
+objective = "rmse_accuracy"
+algorithm = "least-squares"
+
+[[calibration.parameters]]
+layers = ["board"]
+property = "sorption_scale"
+bounds = [-0.5, 1.0]
+
+[[calibration.parameters]]
+layers = ["board"]
+property = "vapour_resistance_factor"
+bounds = [-0.5, 1.0]
+
+[[calibration.parameters]]
+layers = ["board"]
+property = "liquid_transport_scale"
+bounds = [-0.5, 1.0]
+
+[[calibration.parameters]]
+layers = ["board"]
+property = "moisture_conductivity_coefficient"
+bounds = [-0.5, 1.0]
+"""
+
+
+def test_hygric_parameters_reach_the_engine_in_a_batch(tmp_path):
+    from wallcal.calibration.objective import Evaluator
+    from wallcal.calibration.space import space_of
+    from wallcal.simulation import prepare
+    from wallcal.study import load_study
+
+    path = _study(tmp_path)
+    path.write_text(path.read_text() + CALIBRATION)
+    study = load_study(path)
+    space = space_of(study)
+    assert [p.property for p in space.parameters] == [
+        "sorption_scale",
+        "vapour_resistance_factor",
+        "liquid_transport_scale",
+        "moisture_conductivity_coefficient",
+    ]
+    ev = Evaluator(prepare(study, needs=("batches",)), space)
+    base = space.base
+    X = np.array([base, base * [2.0, 1.0, 1.0, 1.0], base * [1.0, 2.0, 1.0, 1.0]])
+    sim = ev.simulate(X)  # (candidates, targets, times)
+    rh = sim[:, 1]
+    assert np.abs(rh[1] - rh[0]).max() > 1e-3 and np.abs(rh[2] - rh[0]).max() > 1e-3
+    wall = space.wall_at(study.wall, X[1])
+    assert wall.layers[0].sorption_scale == pytest.approx(2.0)
+
+
+def test_vapour_resistance_factor_bounds_stay_at_or_above_1(tmp_path):
+    from wallcal.study import load_study
+
+    path = _study(tmp_path)
+    text = path.read_text() + (
+        '\n[calibration]\ntargets = ["RH1"]\n[[calibration.parameters]]\nlayers = ["board"]\n'
+        'property = "vapour_resistance_factor"\nbounds = [0.5, 10]\nbounds_kind = "absolute"\n'
+    )
+    path.write_text(text)
+    with pytest.raises(StudyError, match="must stay >= 1"):
+        load_study(path)
