@@ -402,3 +402,26 @@ def test_passys_moisture_example_with_catalogue_properties():
     rmse = _rmse(REPO / "examples" / "passys" / "study_moisture.toml")
     assert rmse[["T_4", "T_8", "T_12"]].max() == pytest.approx(0.755, abs=0.03)
     assert rmse[["HR_4", "HR_8", "HR_12"]].max() == pytest.approx(0.070, abs=0.005)
+
+
+def test_a_batch_goes_to_the_active_executor(tmp_path, monkeypatch):
+    """Inside a command's executor the ham engine's batches go to it (as EnergyPlus runs do)."""
+    from wallcal import cluster
+    from wallcal.simulation import prepare
+    from wallcal.study import load_study
+
+    calls = []
+
+    class Fake:
+        def map(self, fn, tasks):
+            calls.append(len(tasks))
+            return [fn(t) for t in tasks]
+
+    prep = prepare(load_study(_study(tmp_path)), needs=("batches",))
+    walls = [prep.inp.wall, prep.inp.wall.replace_layer("board", sorption_scale=2.0)]
+    alone = prep.run(walls)
+    monkeypatch.setattr(cluster, "current_executor", lambda: Fake())
+    routed = prep.run(walls)
+    assert calls == [2]
+    assert np.array_equal(routed.relative_humidity["RH1"], alone.relative_humidity["RH1"])
+    assert not np.allclose(alone.relative_humidity["RH1"][0], alone.relative_humidity["RH1"][1])
