@@ -221,9 +221,13 @@ def test_percent_columns_are_read_as_fractions(tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
     frac = simulate(load_study(_study(tmp_path / "a")))
-    pct = simulate(load_study(_study(tmp_path / "b", rh_unit="percent", rh_scale=100.0)))
+    path = _study(tmp_path / "b", rh_unit="percent", rh_scale=100.0)
+    path.write_text(path.read_text().replace('unit = "percent"\naccuracy = 0.03', 'unit = "percent"\naccuracy = 3.0'))
+    pct = simulate(load_study(path))
     assert np.allclose(frac.simulated["RH1"], pct.simulated["RH1"], atol=1e-9)
     assert np.allclose(frac.measured["RH1"], pct.measured["RH1"])
+    acc = pct.metrics.set_index("signal")["accuracy"]
+    assert acc["RH1"] == pytest.approx(0.03)  # a percent sensor's accuracy, 3 (%), compared as a fraction
 
 
 def test_uniform_humid_wall_stays_put(tmp_path):

@@ -460,13 +460,14 @@ def hygric_material(
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise StudyError([f"{where}.liquid_transport: form {form!r} is incomplete or malformed ({exc})"]) from None
     b = float(keys.get("moisture_conductivity_coefficient", 0.0))
-    return HygricMaterial(
-        name=name,
-        storage=store,
-        lambda_dry=float(conductivity),
-        lambda_w=float(conductivity) * b / float(density),
-        rho_c_dry=float(density) * float(specific_heat),
-        resistance_factor=resistance,
-        liquid_conductivity=k_l,
-        moisture_diffusivity=d_w,
-    )
+    with np.errstate(all="ignore"):  # a form that gives nan or inf is refused by HygricMaterial's checks
+        return HygricMaterial(
+            name=name,
+            storage=store,
+            lambda_dry=float(conductivity),
+            lambda_w=float(conductivity) * b / float(density),
+            rho_c_dry=float(density) * float(specific_heat),
+            resistance_factor=resistance,
+            liquid_conductivity=k_l,
+            moisture_diffusivity=d_w,
+        )
