@@ -36,6 +36,8 @@ from .base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch
 
 #: cells at every face and interface [m], growth, widest cell [m]
 GRID = (5e-4, 1.2, 5e-3)
+#: most layers' tabulated materials kept by one prepared input (about 100 kB each)
+MATERIAL_CACHE = 64
 #: most passes of a periodic run
 PERIODIC_PASSES = 6
 #: a sealed surface face's relative humidity (it sets the potential at the face; beta = 0 air faces carry none)
@@ -135,6 +137,8 @@ class _Prepared:
         for i, layer in enumerate(wall.layers):
             key = layer
             if key not in self._materials:
+                if len(self._materials) >= MATERIAL_CACHE:  # a calibration's candidates: keep the memory bounded
+                    self._materials.clear()
                 self._materials[key] = layer.hygric_material(f"wall.layers[{i}] (id {layer.id!r})")
             layers.append(Layer(self._materials[key], layer.thickness))
         return make_grid(layers, *GRID)
