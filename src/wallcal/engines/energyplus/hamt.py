@@ -89,9 +89,26 @@ def hamt_delta_air(t_c: float = T_REF - 273.15, pressure: float = PRESSURE) -> f
     return 2.0e-7 * (t_c + 273.15) ** 0.81 / pressure
 
 
-def _mu_scale() -> float:
-    """Factor on mu so that HAMT's ``delta_air(20 degC) / mu`` is wallcal's ``D_AIR / (R_V T_REF) / mu``."""
-    return hamt_delta_air() / (D_AIR / (R_V * T_REF))
+def mu_scale(t_c: float) -> float:
+    """Factor on mu so that HAMT's vapour permeability ``delta_air(T) / mu`` equals the ``ham`` engine's
+    ``D_AIR / (R_V T_REF) / mu * T_REF / T`` at ``t_c`` [degC] (the two laws differ away from it: HAMT's
+    falls as T^0.81 towards the cold, wallcal's rises as 1/T)."""
+    return hamt_delta_air(t_c) / (D_AIR / (R_V * T_REF) * T_REF / (t_c + 273.15))
+
+
+def layer_mean_temperatures(inp) -> list[float]:
+    """Each layer's mid-point temperature [degC] in the steady state of the mean boundary temperatures
+    (dry conductivities; surface coefficients of air faces included)."""
+    r_layers = [layer.thickness / float(layer.hygric_material().lambda_dry) for layer in inp.wall.layers]
+    r_e = 1.0 / _face(inp.exterior, "exterior")[0]
+    r_i = 1.0 / _face(inp.interior, "interior")[0]
+    t_e, t_i = float(np.mean(inp.exterior.values)), float(np.mean(inp.interior.values))
+    total = r_e + sum(r_layers) + r_i
+    out, r = [], r_e
+    for rl in r_layers:
+        out.append(t_e + (t_i - t_e) * (r + 0.5 * rl) / total)
+        r += rl
+    return out
 
 
 def liquid_diffusivity(mat, w: np.ndarray) -> np.ndarray:
@@ -107,7 +124,7 @@ def liquid_diffusivity(mat, w: np.ndarray) -> np.ndarray:
     return np.interp(w, wm[order], d[order])
 
 
-def hamt_material_objects(name: str, layer, mat, initial_rh: float) -> str:
+def hamt_material_objects(name: str, layer, mat, initial_rh: float, mean_temperature: float = 20.0) -> str:
     """The ``Material`` and the six ``MaterialProperty:HeatAndMoistureTransfer:*`` objects of one layer.
 
     Parameters
@@ -120,6 +137,8 @@ def hamt_material_objects(name: str, layer, mat, initial_rh: float) -> str:
         Its hygric material (:meth:`wallcal.wall.Layer.hygric_material`).
     initial_rh : float
         Initial relative humidity (fraction) of the layer.
+    mean_temperature : float
+        Temperature [degC] at which HAMT's vapour permeability is made equal to wallcal's (:func:`mu_scale`).
 
     Returns
     -------
@@ -135,7 +154,7 @@ def hamt_material_objects(name: str, layer, mat, initial_rh: float) -> str:
     w_sat = float(mat.w[0])
     porosity = min(1.0, max(w_sat / 1000.0, 1e-6))
     w0 = float(np.interp(potential_from_rh(min(max(initial_rh, 1e-6), 0.999999)), U_GRID, mat.w))
-    mu = D_AIR / (R_V * T_REF) / np.interp(u, U_GRID, mat.delta_ref) * _mu_scale()
+    mu = D_AIR / (R_V * T_REF) / np.interp(u, U_GRID, mat.delta_ref) * mu_scale(mean_temperature)
     # liquid transport at distinct water contents (EnergyPlus interpolates in w)
     w_liq = np.unique(np.concatenate(([0.0], w_iso)))[:25]
     d_liq = liquid_diffusivity(mat, w_liq)
@@ -514,6 +533,8 @@ def build_hamt_idf(
         o.append(idf_object("Output:Variable", [(WALL_SURFACE, "Key"), (v, "Variable"), ("Timestep", "Frequency")]))
     for v in ("Zone Mean Air Temperature", "Zone Air Relative Humidity"):
         o.append(idf_object("Output:Variable", [("ZONE", "Key"), (v, "Variable"), ("Timestep", "Frequency")]))
+    for v in ("Site Outdoor Air Drybulb Temperature", "Site Outdoor Air Relative Humidity"):
+        o.append(idf_object("Output:Variable", [("Environment", "Key"), (v, "Variable"), ("Timestep", "Frequency")]))
     return "\n".join(o)
 
 
@@ -565,6 +586,8 @@ class EnergyPlusHamtEngine(Engine):
     ----------
     warmup_days : int
         Minimum number of EnergyPlus warm-up days (repeating the constant pad day).
+    steps_per_hour : int or None
+        EnergyPlus timesteps per hour (20, 30 or 60); None: 20, or more for input time steps below 180 s.
     keep_dir : str or Path or None
         Copy the EnergyPlus run directory there (for inspection).
     timeout : float
@@ -584,8 +607,12 @@ class EnergyPlusHamtEngine(Engine):
         moisture=True,
     )
 
-    def __init__(self, *, warmup_days: int = 1, keep_dir=None, timeout: float = 900.0):
-        self.settings = dict(warmup_days=warmup_days, keep_dir=keep_dir, timeout=timeout)
+    def __init__(
+        self, *, warmup_days: int = 1, steps_per_hour: int | None = None, keep_dir=None, timeout: float = 900.0
+    ):
+        if steps_per_hour is not None and steps_per_hour not in (20, 30, 60):
+            raise EngineError(f"steps_per_hour must be 20, 30 or 60 (HAMT needs at least 20), got {steps_per_hour}")
+        self.settings = dict(warmup_days=warmup_days, steps_per_hour=steps_per_hour, keep_dir=keep_dir, timeout=timeout)
 
     def unavailable(self) -> str | None:
         from .runner import energyplus_binary
@@ -650,7 +677,7 @@ class EnergyPlusHamtEngine(Engine):
         t_start = time.perf_counter()
         exe = energyplus_binary()
         dt = float(inp.time_step)
-        sph = _steps_per_hour(dt)
+        sph = self.settings["steps_per_hour"] or _steps_per_hour(dt)
         dte = 3600.0 / sph
         spd = int(round(DAY / dte))
         times = np.arange(inp.n_steps + 1) * dt
@@ -672,13 +699,14 @@ class EnergyPlusHamtEngine(Engine):
 
         names = [f"L{i + 1}_{(layer.id or 'layer')}"[:60].replace(",", "_") for i, layer in enumerate(inp.wall.layers)]
         mats, depth = [], 0.0
+        t_mean = layer_mean_temperatures(inp)
         for i, layer in enumerate(inp.wall.layers):
             mat = layer.hygric_material(f"wall.layers[{i}] (id {layer.id!r})")
             phi0 = _initial_rh(inp, depth + 0.5 * layer.thickness)
             if not np.isfinite(phi0):  # an initial water content [kg/m3]
                 u = mat.potential_from_water_content(float(inp.moisture.water_content))
                 phi0 = float(np.exp(-np.exp(u) / (1000.0 * R_V * T_REF)))
-            mats.append(hamt_material_objects(names[i], layer, mat, phi0))
+            mats.append(hamt_material_objects(names[i], layer, mat, phi0, t_mean[i]))
             depth += layer.thickness
         n_cells_guess = 12 * len(names) + 10
         with tempfile.TemporaryDirectory(prefix="wallcal_hamt_") as tmp:
@@ -716,10 +744,14 @@ class EnergyPlusHamtEngine(Engine):
         def probe(values, name):
             return np.interp(out_times, t_rows, _at(values, x, inp.wall.probe(name).depth))
 
+        # HAMT reports water content per kg of dry material: times the density of the layer holding the cell
+        bounds = np.cumsum([layer.thickness for layer in inp.wall.layers])
+        k = np.minimum(np.searchsorted(bounds, x, side="left"), len(bounds) - 1)
+        density = np.array([float(layer.density) for layer in inp.wall.layers])[k]
         m = inp.moisture
         temps = {p: probe(series["T"], p) for p in inp.probes}
         rh = {p: probe(series["RH"], p) for p in (m.probes_relative_humidity if m else ())}
-        w = {p: probe(series["W"], p) for p in (m.probes_water_content if m else ())}
+        w = {p: probe(series["W"] * density, p) for p in (m.probes_water_content if m else ())}
         info = {
             "engine": self.name,
             "energyplus": str(exe),
@@ -733,7 +765,7 @@ class EnergyPlusHamtEngine(Engine):
 
 
 def _read_cells(csv: Path, n: int) -> dict:
-    """Cell temperature [degC], relative humidity (fraction) and water content [kg/m3] per reported step."""
+    """Cell temperature [degC], relative humidity (fraction) and water content [kg/kg] per reported step."""
     import pandas as pd
 
     df = pd.read_csv(csv)
