@@ -10,7 +10,8 @@ ham,energyplus-hamt``). The model (see ``docs/energyplus.md``, section HAMT):
   (:func:`hamt_material_objects`): porosity (the saturation water content / 1000) and the initial water
   content, the sorption isotherm (w at :data:`ISOTHERM_RH`), suction and redistribution (the same liquid
   diffusivity ``D_w(w)``, from the material's Kirchhoff table), ``mu(RH)`` (scaled so that HAMT's
-  ``delta_air(20 degC) / mu`` equals wallcal's vapour permeability) and ``lambda(w)``;
+  ``delta_air(T) / mu`` equals wallcal's vapour permeability at the layer's mean temperature,
+  :func:`mu_scale`) and ``lambda(w)``;
 - the reported surface ``WALL`` of a 2 m cube whose five other surfaces are computed by CTF; both faces'
   thermal absorptance is 1e-5, so no long-wave radiation (the study's surface coefficient is the combined
   one, imposed as convection);
@@ -45,7 +46,15 @@ import numpy as np
 
 from ...errors import EngineError, OptionalDependencyError
 from ...idf import idf_object
-from ...moisture.materials import D_AIR, R_V, T_REF, U_GRID, potential_from_rh, saturation_pressure
+from ...moisture.materials import (
+    D_AIR,
+    R_V,
+    T_REF,
+    U_GRID,
+    potential_from_rh,
+    rh_from_suction,
+    saturation_pressure,
+)
 from ..base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch, stack_outputs
 from .model import DAY, WALL_SURFACE, YEAR_DAYS
 
@@ -334,6 +343,9 @@ def build_hamt_idf(
             ],
         ),  # fmt: skip
         idf_object("ZoneAirHeatBalanceAlgorithm", [("AnalyticalSolution", "Algorithm")]),
+        idf_object(  # the outdoor air at the wall is the weather file's: no temperature gradient with height
+            "Site:HeightVariation", [(0.22, "Wind Exponent"), (370.0, "Boundary Layer"), (0.0, "Temperature Gradient")]
+        ),
         idf_object(
             "RunPeriod",
             [
@@ -705,7 +717,7 @@ class EnergyPlusHamtEngine(Engine):
             phi0 = _initial_rh(inp, depth + 0.5 * layer.thickness)
             if not np.isfinite(phi0):  # an initial water content [kg/m3]
                 u = mat.potential_from_water_content(float(inp.moisture.water_content))
-                phi0 = float(np.exp(-np.exp(u) / (1000.0 * R_V * T_REF)))
+                phi0 = float(rh_from_suction(np.exp(u)))
             mats.append(hamt_material_objects(names[i], layer, mat, phi0, t_mean[i]))
             depth += layer.thickness
         n_cells_guess = 12 * len(names) + 10
