@@ -94,10 +94,18 @@ bounds = [-0.5, 2.0]
 
 
 def test_registry_is_the_one_list_of_engines():
-    assert engines.ENGINE_NAMES == ("fd-cn", "fd-implicit", "fd-exact", "fd-reference", "energyplus", "ham")
+    assert engines.ENGINE_NAMES == (
+        "fd-cn",
+        "fd-implicit",
+        "fd-exact",
+        "fd-reference",
+        "energyplus",
+        "ham",
+        "energyplus-hamt",
+    )
     assert set(engines.engine_names()) >= set(engines.ENGINE_NAMES) | {"energyplus-cn", "energyplus-implicit"}
-    # fd-reference among them; ham (heat and moisture, needs hygric data) is not a base case
-    assert engines.engine_names(base_case=True) == engines.ENGINE_NAMES[:-1]
+    # fd-reference among them; ham and energyplus-hamt (heat and moisture, need hygric data) are no base case
+    assert engines.engine_names(base_case=True) == engines.ENGINE_NAMES[:-2]
     assert [engines.scheme_of(n) for n in ("fd-cn", "fd-implicit", "energyplus-implicit")] == [
         "cn",
         "implicit",

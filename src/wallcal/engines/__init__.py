@@ -129,6 +129,7 @@ BUILT_IN = (
         node_rule="energyplus (EnergyPlus' own)",
     ),  # fmt: skip
     EngineEntry("ham", ".ham:HamEngine", scheme="implicit", base_case=False),
+    EngineEntry("energyplus-hamt", ".energyplus.hamt:EnergyPlusHamtEngine", scheme="implicit", base_case=False),
 )
 
 _REGISTRY: dict[str, EngineEntry] = {e.name: e for e in BUILT_IN}
