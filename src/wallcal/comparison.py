@@ -33,7 +33,7 @@ import pandas as pd
 
 from .errors import OptionalDependencyError, StudyError, closest
 from .metrics import METRIC_COLUMNS
-from .study import Study
+from .study import QUANTITY_UNITS, Study
 
 #: Metrics shown in Table IV (rows per sensor), in this order.
 TABLE_IV_METRICS = ("rmse", "rn_rmse", "cv_rmse_eff", "mbe", "nmbe", "cv_rmse_g14")
@@ -54,7 +54,7 @@ class Comparison:
         One result per engine that ran.
     table : DataFrame
         Long form, one row per (engine, signal): columns :data:`LONG_COLUMNS`. Errors in the
-        signal's unit (degC or W/m2); rn_rmse, cv_rmse_eff, nmbe and cv_rmse_g14 are fractions.
+        signal's unit (degC, W/m2, fraction of RH or kg/m3); rn_rmse, cv_rmse_eff, nmbe and cv_rmse_g14 are fractions.
     differences : DataFrame
         One row per (signal, engine_a, engine_b): ``rms_difference`` and ``max_abs_difference``
         of ``simulated_a - simulated_b`` over the comparison timestamps [unit of the signal],
@@ -275,7 +275,7 @@ def compare_many(
 
 
 def _assemble(study, preps, results, skipped, seconds) -> Comparison:
-    units = {s.name: (s.unit if s.quantity == "temperature" else "W/m2") for s in study.sensors}
+    units = {s.name: QUANTITY_UNITS[s.quantity] for s in study.sensors}  # the units after conversion
     rows = []
     for name, res in results.items():
         m = res.metrics.copy()

@@ -40,6 +40,8 @@ __all__ = [
 QUANTITIES = ("temperature", "heat_flux", "relative_humidity", "water_content")
 #: quantities only the engines with the ``moisture`` capability compute (``ham``)
 MOISTURE_QUANTITIES = ("relative_humidity", "water_content")
+#: the unit of each quantity inside wallcal (after a column's unit and sign conversion)
+QUANTITY_UNITS = {"temperature": "degC", "heat_flux": "W/m2", "relative_humidity": "fraction", "water_content": "kg/m3"}
 HUMIDITY_UNITS = ("fraction", "percent")
 INITIAL_STATES = ("first_row", "constant", "periodic")
 TEMPERATURE_UNITS = ("degC", "K")
