@@ -13,21 +13,22 @@ TRH-1 (``src/wallcal/examples/trh/study_moisture.toml``, bundled): the interface
 of the record (2021-01-26 .. 02-15), first with the catalogue's properties, then calibrated on the first half
 (2021-01-05 .. 25) and simulated over the whole record from its ``calibrated_wall.toml``.
 
-Everything goes through the CLI (``python -m wallcal.cli``); the variant study files are written into
-``--out`` (default a temporary directory) with absolute data paths. ``--quick`` caps every calibration at two
-least-squares iterations (the machinery check of tests/test_moisture_real_walls.py).
+Everything goes through the CLI (``wallcal.cli.main``); the variant study files are written into
+``--out`` (default a temporary directory) with absolute data paths. ``--quick`` runs each protocol on a few days
+with one least-squares iteration (the machinery check of tests/test_moisture_real_walls.py).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
+import io
 import json
-import subprocess
-import sys
 import tempfile
 import time
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,21 +40,43 @@ PASSYS_MOISTURE = ROOT / "examples" / "passys" / "study_moisture.toml"
 PASSYS_THERMAL = ROOT / "examples" / "passys" / "study.toml"
 TRH_MOISTURE = ROOT / "src" / "wallcal" / "examples" / "trh" / "study_moisture.toml"
 
-PASSYS_CAL_END = dt.datetime(2014, 1, 10, 23, 55)
-PASSYS_TEST = (dt.datetime(2014, 1, 11, 0, 0), dt.datetime(2014, 1, 14, 23, 55))
-TRH_CAL_END = dt.datetime(2021, 1, 25, 23, 55)
-TRH_TEST = (dt.datetime(2021, 1, 26, 0, 5), dt.datetime(2021, 2, 15, 23, 55))
+
+@dataclass(frozen=True)
+class Protocol:
+    """Calibrate up to ``cal_end``; simulate up to ``end`` (None: the study's own end); score ``test``."""
+
+    cal_end: dt.datetime
+    test: tuple[dt.datetime, dt.datetime]
+    end: dt.datetime | None = None
+    max_nfev: int | None = None  # None: the study's own least-squares budget
+
+
+PASSYS = Protocol(dt.datetime(2014, 1, 10, 23, 55), (dt.datetime(2014, 1, 11, 0, 0), dt.datetime(2014, 1, 14, 23, 55)))
+TRH = Protocol(dt.datetime(2021, 1, 25, 23, 55), (dt.datetime(2021, 1, 26, 0, 5), dt.datetime(2021, 2, 15, 23, 55)))
+#: --quick (tests/test_moisture_real_walls.py): the machinery on a few days, one least-squares iteration
+PASSYS_QUICK = Protocol(
+    dt.datetime(2014, 1, 3, 23, 55),
+    (dt.datetime(2014, 1, 4, 0, 0), dt.datetime(2014, 1, 4, 23, 55)),
+    dt.datetime(2014, 1, 4, 23, 55),
+    1,
+)
+TRH_QUICK = Protocol(
+    dt.datetime(2021, 1, 6, 23, 55),
+    (dt.datetime(2021, 1, 7, 0, 5), dt.datetime(2021, 1, 7, 23, 55)),
+    dt.datetime(2021, 1, 7, 23, 55),
+    1,
+)
 
 
 def wallcal(*args: str) -> None:
-    """Run one wallcal command; raise with its output when it fails."""
-    env_path = str(ROOT / "src")
-    import os
+    """Run one wallcal command (the CLI's ``main``, in this process); raise with its output when it fails."""
+    from wallcal.cli import main
 
-    env = dict(os.environ, PYTHONPATH=env_path + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    r = subprocess.run([sys.executable, "-m", "wallcal.cli", *args], capture_output=True, text=True, env=env)
-    if r.returncode != 0:
-        raise RuntimeError(f"wallcal {' '.join(args)} failed ({r.returncode}):\n{r.stdout}\n{r.stderr}")
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(list(args))
+    if rc != 0:
+        raise RuntimeError(f"wallcal {' '.join(args)} failed ({rc}):\n{out.getvalue()}\n{err.getvalue()}")
 
 
 def absolute_paths(raw: dict, base: Path) -> dict:
@@ -77,7 +100,7 @@ def heat_only_as_moisture(raw: dict) -> dict:
     return raw
 
 
-def variant(src: Path, dest: Path, *, end=None, wall_file=None, offsets=None, quick=False, edit=None) -> Path:
+def variant(src: Path, dest: Path, *, end=None, wall_file=None, offsets=None, max_nfev=None, edit=None) -> Path:
     """Write a variant of the study ``src`` to ``dest``: another ``[period] end``, a ``[wall] file``, sensor
     offsets added to the sensors' ``offset``, a least-squares budget, ``edit(raw)`` applied first."""
     raw = absolute_paths(tomllib.loads(src.read_text()), src.parent)
@@ -90,9 +113,9 @@ def variant(src: Path, dest: Path, *, end=None, wall_file=None, offsets=None, qu
     for s in raw.get("sensors", []):
         if offsets and s["name"] in offsets:
             s["offset"] = s.get("offset", 0.0) + offsets[s["name"]]
-    if quick and "calibration" in raw:
+    if max_nfev is not None and "calibration" in raw:
         raw["calibration"]["algorithm"] = "least-squares"
-        raw["calibration"]["settings"] = {"max_nfev": 2}
+        raw["calibration"]["settings"] = {"max_nfev": max_nfev}
     dest.parent.mkdir(parents=True, exist_ok=True)
     dest.write_text(tomli_w.dumps(raw))
     return dest
@@ -110,10 +133,11 @@ def scores(sim_dir: Path, signals, start, end) -> dict[str, float]:
     return out
 
 
-def calibrate_then_simulate(study: Path, work: Path, cal_end, quick: bool, edit=None) -> tuple[Path, dict]:
-    """``wallcal calibrate`` the study up to ``cal_end``; ``wallcal simulate`` the whole record from the
-    ``calibrated_wall.toml`` it wrote. Returns the simulate directory and the calibration's json."""
-    cal_study = variant(study, work / "calibrate.toml", end=cal_end, quick=quick, edit=edit)
+def calibrate_then_simulate(study: Path, work: Path, proto: Protocol, edit=None) -> tuple[Path, dict]:
+    """``wallcal calibrate`` the study up to ``proto.cal_end``; ``wallcal simulate`` the whole record (up to
+    ``proto.end``) from the ``calibrated_wall.toml`` it wrote. Returns the simulate directory and the
+    calibration's json."""
+    cal_study = variant(study, work / "calibrate.toml", end=proto.cal_end, max_nfev=proto.max_nfev, edit=edit)
     t0 = time.perf_counter()
     wallcal("calibrate", str(cal_study), "--out", str(work / "calibration"), "--quiet")
     seconds = time.perf_counter() - t0
@@ -121,12 +145,12 @@ def calibrate_then_simulate(study: Path, work: Path, cal_end, quick: bool, edit=
     cal["wall_seconds"] = seconds
     offsets = {p["name"][len("offset[") : -1]: p["optimum"] for p in cal["parameters"] if p["property"] == "offset"}
     wall = work / "calibration" / "calibrated_wall.toml"
-    sim_study = variant(study, work / "simulate.toml", wall_file=wall, offsets=offsets, edit=edit)
+    sim_study = variant(study, work / "simulate.toml", end=proto.end, wall_file=wall, offsets=offsets, edit=edit)
     wallcal("simulate", str(sim_study), "--out", str(work / "simulate"))
     return work / "simulate", cal
 
 
-def passys(out: Path, quick: bool = False) -> pd.DataFrame:
+def passys(out: Path, proto: Protocol = PASSYS) -> pd.DataFrame:
     """PASSYS: held-out RMSE of the moisture and the heat-only studies, calibrated on the first 10 days."""
     rows = {}
     for label, study, signals, edit in (
@@ -134,51 +158,67 @@ def passys(out: Path, quick: bool = False) -> pd.DataFrame:
         ("heat only (fd-cn)", PASSYS_THERMAL, ["T_4", "T_8", "T_12"], heat_only_as_moisture),
     ):
         work = out / ("passys_moisture" if "ham" in label else "passys_thermal")
-        sim_dir, cal = calibrate_then_simulate(study, work, PASSYS_CAL_END, quick, edit)
-        row = scores(sim_dir, signals, *PASSYS_TEST)
+        sim_dir, cal = calibrate_then_simulate(study, work, proto, edit)
+        row = scores(sim_dir, signals, *proto.test)
         row["runs"] = cal["evaluations"]
         row["calibration s"] = round(cal["wall_seconds"], 1)
         rows[label] = row
     return pd.DataFrame(rows).T
 
 
-def trh(out: Path, quick: bool = False) -> pd.DataFrame:
+def trh(out: Path, proto: Protocol = TRH) -> pd.DataFrame:
     """TRH-1: interface T and RH over the second half, catalogue properties and calibrated on the first half."""
     signals = ["interface", "interface_rh"]
     work = out / "trh"
-    base = variant(TRH_MOISTURE, work / "catalogue.toml")
+    base = variant(TRH_MOISTURE, work / "catalogue.toml", end=proto.end)
     wallcal("simulate", str(base), "--out", str(work / "catalogue"))
-    rows = {"catalogue": scores(work / "catalogue", signals, *TRH_TEST)}
-    sim_dir, cal = calibrate_then_simulate(TRH_MOISTURE, work, TRH_CAL_END, quick)
+    rows = {"catalogue": scores(work / "catalogue", signals, *proto.test)}
+    sim_dir, cal = calibrate_then_simulate(TRH_MOISTURE, work, proto)
     rows["calibrated on the first half"] = {
-        **scores(sim_dir, signals, *TRH_TEST),
+        **scores(sim_dir, signals, *proto.test),
         "runs": cal["evaluations"],
         "calibration s": round(cal["wall_seconds"], 1),
     }
     return pd.DataFrame(rows).T
 
 
+def markdown(t: pd.DataFrame) -> str:
+    """The table as markdown (RMSE with 3 decimals, the run count as an integer), as docs/moisture.md shows it."""
+    cols = list(t.columns)
+    lines = ["| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for label, row in t.iterrows():
+        cells = []
+        for c in cols:
+            v = row[c]
+            cells.append(
+                "-" if pd.isna(v) else f"{int(v)}" if c == "runs" else f"{v:.1f}" if c.endswith(" s") else f"{v:.3f}"
+            )
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, help="working directory (default: a temporary one)")
-    ap.add_argument("--quick", action="store_true", help="two least-squares iterations per calibration")
+    ap.add_argument("--quick", action="store_true", help="a few days and one least-squares iteration (the tests)")
     ap.add_argument("--wall", choices=("passys", "trh", "both"), default="both")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
-        pd.set_option("display.width", 160)
         if args.wall in ("passys", "both"):
             if not (ROOT.parent / "shared" / "data" / "real").is_dir():
                 print("PASSYS: ../shared/data/real/ not found beside the repository: skipped")
             else:
-                t = passys(out, args.quick)
-                print(f"PASSYS, held-out RMSE {PASSYS_TEST[0]:%Y-%m-%d} .. {PASSYS_TEST[1]:%Y-%m-%d} (K; RH fraction)")
-                print(t.to_string(float_format=lambda v: f"{v:.3f}", na_rep="-"))
+                proto = PASSYS_QUICK if args.quick else PASSYS
+                t = passys(out, proto)
+                print(f"PASSYS, held-out RMSE {proto.test[0]:%Y-%m-%d} .. {proto.test[1]:%Y-%m-%d} (K; RH fraction)")
+                print(markdown(t))
                 print()
         if args.wall in ("trh", "both"):
-            t = trh(out, args.quick)
-            print(f"TRH-1, held-out RMSE {TRH_TEST[0]:%Y-%m-%d} .. {TRH_TEST[1]:%Y-%m-%d} (K; RH fraction)")
-            print(t.to_string(float_format=lambda v: f"{v:.3f}", na_rep="-"))
+            proto = TRH_QUICK if args.quick else TRH
+            t = trh(out, proto)
+            print(f"TRH-1, held-out RMSE {proto.test[0]:%Y-%m-%d} .. {proto.test[1]:%Y-%m-%d} (K; RH fraction)")
+            print(markdown(t))
     return 0
 
 

@@ -84,11 +84,6 @@ def figure_html(title: str, path: Path) -> str:
     )
 
 
-def is_moisture_study(study) -> bool:
-    """Whether the study has relative humidity or water content sensors (a ``ham`` study)."""
-    return any(s.quantity in ("relative_humidity", "water_content") for s in study.sensors)
-
-
 def moisture_figures(study, d: Path, result=None) -> list[tuple[str, Path]]:
     """The moisture figures of a ``ham`` study: measured vs simulated relative humidity at each humidity
     sensor (``moisture_rh.png``) and the water content and RH profiles across the wall at six times of the
@@ -97,7 +92,7 @@ def moisture_figures(study, d: Path, result=None) -> list[tuple[str, Path]]:
     Parameters
     ----------
     study : Study
-        A moisture study (:func:`is_moisture_study`).
+        A moisture study (``study.has_moisture``).
     d : Path
         Where the PNG files go.
     result : SimulationResult, optional

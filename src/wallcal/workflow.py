@@ -135,9 +135,9 @@ def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
     if why:
         so.text.append(f"The base case ran in {', '.join(ctx.engines)} only: {why}.")
     ctx.results["comparison"] = comp
-    from .report import is_moisture_study, moisture_figures
+    from .report import moisture_figures
 
-    if is_moisture_study(ctx.study) and "ham" in comp.results:
+    if ctx.study.has_moisture and "ham" in comp.results:
         so.figures += moisture_figures(ctx.study, d, comp.results["ham"])
     base = comp.results[ctx.engines[0]].metrics
     units = {s.name: ("W/m2" if s.quantity == "heat_flux" else "degC") for s in ctx.study.sensors}
