@@ -88,8 +88,9 @@ def test_trh_protocol_machinery(bench, tmp_path):
 @pytest.mark.slow
 @pytest.mark.skipif(not PASSYS_DATA.exists(), reason=f"PASSYS data absent ({PASSYS_DATA}); read in place only")
 def test_passys_protocol_machinery(bench, tmp_path):
-    t = bench.passys(tmp_path, bench.PASSYS_QUICK)
-    assert list(t.index) == ["heat and moisture (ham)", "heat only (fd-cn)"]
+    t, bias = bench.passys(tmp_path, bench.PASSYS_QUICK, variants=False)
+    assert list(t.index) == list(bias.index) == ["heat and moisture (ham)", "heat only (fd-cn)"]
+    assert ((bias.abs() <= t[bias.columns]) | bias.isna()).all().all()  # |mean error| <= RMSE
     assert t.loc["heat only (fd-cn)", ["HR_4", "HR_8", "HR_12"]].isna().all()
     work = tmp_path / "passys_moisture"
     _check_round_trip(
@@ -122,7 +123,6 @@ def test_calibrated_wall_carries_every_hygric_parameter(tmp_path):
         "specific_heat": 1500.0,
         "sorption_scale": 0.31,
         "vapour_resistance_factor": 1.7,
-        "liquid_transport_scale": 0.2,
     }
     for j, p in enumerate(space.parameters):
         if p.property in values:
@@ -133,7 +133,7 @@ def test_calibrated_wall_carries_every_hygric_parameter(tmp_path):
     for k, v in values.items():
         assert getattr(layer, k) == pytest.approx(v), k
     keys = layer.hygric_keys()
-    assert keys["sorption_scale"] == pytest.approx(0.31) and keys["liquid_transport_scale"] == pytest.approx(0.2)
+    assert keys["sorption_scale"] == pytest.approx(0.31) and keys["vapour_resistance_factor"] == pytest.approx(1.7)
     assert {"moisture_storage", "liquid_transport", "moisture_conductivity_coefficient"} <= set(keys)
 
 
@@ -152,3 +152,31 @@ def test_documented_tables_are_the_bench_scripts(bench):
         pd.DataFrame({"T_4": [0.1], "runs": [3.0], "calibration s": [1.25]}, index=["heat only (fd-cn)"])
     )
     assert table.splitlines()[2] == "| heat only (fd-cn) | 0.100 | 3 | 1.2 |"
+
+
+def test_diagnose_proposes_lambda_w_for_a_moisture_study():
+    from wallcal.analysis.diagnose_candidates import propose
+    from wallcal.study import load_study
+
+    study = load_study(REPO / "src" / "wallcal" / "examples" / "trh" / "study_moisture.toml")
+    exts = [e for e in propose(study, study.calibration) if e.kind == "moisture_conductivity_coefficient"]
+    # the two insulation layers (glass wool, wind barrier); not the gypsum board nor the vapour barrier film
+    assert [e.table["layers"] for e in exts] == [["wind_barrier"], ["glass_wool"]]
+    gw = exts[1].table
+    assert gw["property"] == "moisture_conductivity_coefficient" and gw["bounds"][0] == 0.0
+    assert gw["bounds"][1] > (study.wall.layers[1].moisture_conductivity_coefficient or 0.0)
+    thermal = load_study(REPO / "src" / "wallcal" / "examples" / "trh" / "study.toml")
+    assert not [e for e in propose(thermal, thermal.calibration) if e.kind == "moisture_conductivity_coefficient"]
+
+
+@pytest.mark.slow
+def test_report_moisture_figures(bench, tmp_path):
+    """The report's moisture figures: measured vs simulated RH and the profiles across the wall."""
+    from wallcal.report import moisture_figures
+    from wallcal.study import load_study
+
+    path = bench.variant(bench.TRH_MOISTURE, tmp_path / "s.toml", end=bench.TRH_QUICK.end)
+    figs = moisture_figures(load_study(path), tmp_path)
+    assert [p.name for _, p in figs] == ["moisture_rh.png", "moisture_profiles.png"]
+    for _, p in figs:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
