@@ -170,13 +170,18 @@ def test_diagnose_proposes_lambda_w_for_a_moisture_study():
 
 
 @pytest.mark.slow
-def test_report_moisture_figures(bench, tmp_path):
-    """The report's moisture figures: measured vs simulated RH and the profiles across the wall."""
-    from wallcal.report import moisture_figures
+def test_run_report_stage_shows_the_moisture_figures(bench, tmp_path):
+    """wallcal run's base-case stage hands the moisture figures to the report for a moisture study."""
     from wallcal.study import load_study
+    from wallcal.workflow import RunContext, StageOutput, _stage_data, _stage_engines
 
     path = bench.variant(bench.TRH_MOISTURE, tmp_path / "s.toml", end=bench.TRH_QUICK.end)
-    figs = moisture_figures(load_study(path), tmp_path)
-    assert [p.name for _, p in figs] == ["moisture_rh.png", "moisture_profiles.png"]
-    for _, p in figs:
-        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
+    ctx = RunContext(study=load_study(path), out=tmp_path, progress=False)
+    _stage_data(ctx, tmp_path, StageOutput("data", ""))
+    so = StageOutput("engines", "")
+    _stage_engines(ctx, tmp_path, so)
+    names = [p.name for _, p in so.figures]
+    assert "moisture_rh.png" in names and "moisture_profiles.png" in names
+    for _, p in so.figures:
+        if p.name.startswith("moisture_"):
+            assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
