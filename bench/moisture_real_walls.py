@@ -1,13 +1,16 @@
 """Issue 37's real-wall protocols for the heat-and-moisture engine: PASSYS and TRH-1, held-out scoring.
 
-Run: ``PYTHONPATH=src python bench/moisture_real_walls.py [--out DIR] [--quick]``. Prints one table per wall.
+Run: ``PYTHONPATH=src python bench/moisture_real_walls.py [--out DIR] [--quick]``. Prints the tables of
+docs/moisture.md ("Real walls: held-out scores").
 
 PASSYS (``examples/passys/study_moisture.toml``, data read in place from ``../shared/data/real/``):
 ``wallcal calibrate`` on the first 10 days (the study's ``[period] end`` moved to 2014-01-10 23:55), then
 ``wallcal simulate`` of the whole record with a study whose ``[wall] file`` is the ``calibrated_wall.toml``
 the calibration wrote (its calibrated sensor offsets, read from ``calibration.json``, added to the sensors'
 ``offset``); the last 4 days (2014-01-11 .. 14) are scored. The heat-only study ``examples/passys/study.toml``
-goes through the same protocol (T_4, T_8, T_12 on the same days), for the side-by-side table.
+goes through the same protocol (its +0.9 K face offset removed, the in-wall offsets calibrated instead; T_4, T_8,
+T_12 on the same days), for the side-by-side table; and the moisture study once more without its offset
+parameters (what the material alone explains). A second table gives the mean errors (measured - model).
 
 TRH-1 (``src/wallcal/examples/trh/study_moisture.toml``, bundled): the interface T and RH over the second half
 of the record (2021-01-26 .. 02-15), first with the catalogue's properties, then calibrated on the first half
@@ -80,7 +83,8 @@ def wallcal(*args: str) -> None:
 
 
 def absolute_paths(raw: dict, base: Path) -> dict:
-    """The study's data (and wall / hygric) file names made absolute, so that the variant can live anywhere."""
+    """The study's data file names made absolute, so that the variant can live anywhere (the two studies name
+    no other file)."""
     data = raw["data"]
     if "file" in data:
         data["file"] = str((base / data["file"]).resolve())
