@@ -84,6 +84,76 @@ def figure_html(title: str, path: Path) -> str:
     )
 
 
+def moisture_figures(study, d: Path, result=None) -> list[tuple[str, Path]]:
+    """The moisture figures of a ``ham`` study: measured vs simulated relative humidity at each humidity
+    sensor (``moisture_rh.png``) and the water content and RH profiles across the wall at six times of the
+    comparison period (``moisture_profiles.png``, from the engine's cell states: ``profiles`` requested).
+
+    Parameters
+    ----------
+    study : Study
+        A moisture study (``study.has_moisture``).
+    d : Path
+        Where the PNG files go.
+    result : SimulationResult, optional
+        A run of the study with its engine; run again here when it holds no profiles.
+    """
+    import dataclasses
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .simulation import simulate
+
+    if result is None or result.profiles is None:
+        study_p = dataclasses.replace(study, simulation=dataclasses.replace(study.simulation, profiles=True))
+        result = simulate(study_p, engine="ham")
+    d = Path(d)
+    figs = []
+    rh = [s for s in study.sensors if s.quantity == "relative_humidity"]
+    if rh:
+        fig, ax = plt.subplots(figsize=(11, 4.5), layout="constrained")
+        for k, s in enumerate(rh):
+            c = f"C{k}"
+            ax.plot(result.measured.index, result.measured[s.name], color=c, lw=0.8, label=f"{s.name} measured")
+            ax.plot(result.simulated.index, result.simulated[s.name], color=c, lw=1.2, ls="--", label="simulated")
+        ax.set_ylabel("relative humidity [-]")
+        ax.set_xlabel("time (local standard time)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, ncol=2)
+        ax.set_title(f"{study.name}: measured vs simulated relative humidity")
+        fig.savefig(d / "moisture_rh.png", dpi=100)
+        plt.close(fig)
+        figs.append(("Measured (solid) vs simulated (dashed) relative humidity", d / "moisture_rh.png"))
+    prof = result.profiles
+    if prof is not None and len(prof):
+        times = np.unique(prof["time_s"].to_numpy())
+        pick = times[np.linspace(0, len(times) - 1, 6).round().astype(int)]
+        t0 = pd.Timestamp(result.simulated.index[0]) - pd.Timedelta(seconds=float(times[0]))
+        fig, (aw, ar) = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
+        for k, t in enumerate(pick):
+            p = prof[prof["time_s"] == t]
+            label = f"{t0 + pd.Timedelta(seconds=float(t)):%Y-%m-%d %H:%M}"
+            aw.plot(p["x_m"] * 1000, p["water_content"], color=f"C{k}", label=label)
+            ar.plot(p["x_m"] * 1000, p["relative_humidity"], color=f"C{k}", label=label)
+        for li, x in enumerate(np.cumsum([layer.thickness for layer in study.wall.layers])[:-1]):
+            for ax in (aw, ar):
+                ax.axvline(x * 1000, color="0.6", lw=0.7, ls=":", label="layer interface" if li == 0 else None)
+        aw.set_ylabel("water content [kg/m3]")
+        ar.set_ylabel("relative humidity [-]")
+        for ax in (aw, ar):
+            ax.set_xlabel("x from the exterior face [mm]")
+            ax.grid(alpha=0.3)
+        aw.legend(fontsize=8)
+        fig.suptitle(f"{study.name}: profiles across the wall (ham engine's cell states)")
+        fig.savefig(d / "moisture_profiles.png", dpi=100)
+        plt.close(fig)
+        figs.append(("Water content and relative humidity across the wall at six times", d / "moisture_profiles.png"))
+    return figs
+
+
 def _summary(study, outputs) -> str:
     by = {o.name: o for o in outputs}
     items = []

@@ -135,6 +135,10 @@ def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
     if why:
         so.text.append(f"The base case ran in {', '.join(ctx.engines)} only: {why}.")
     ctx.results["comparison"] = comp
+    from .report import moisture_figures
+
+    if ctx.study.has_moisture and "ham" in comp.results:
+        so.figures += moisture_figures(ctx.study, d, comp.results["ham"])
     base = comp.results[ctx.engines[0]].metrics
     units = {s.name: ("W/m2" if s.quantity == "heat_flux" else "degC") for s in ctx.study.sensors}
     so.text.insert(

@@ -449,7 +449,13 @@ def diagnose(
 
     t0 = time.perf_counter()
     space = space_of(study)
-    all_kinds = ("depth", "contact_resistance", "conductivity_temperature_coefficient", "offset")
+    all_kinds = (
+        "depth",
+        "contact_resistance",
+        "conductivity_temperature_coefficient",
+        "moisture_conductivity_coefficient",
+        "offset",
+    )
     if kinds is not None:
         bad = [k for k in kinds if k not in all_kinds]
         if bad:

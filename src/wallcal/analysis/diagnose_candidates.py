@@ -18,6 +18,9 @@ CONTACT_BOUNDS = (0.0, 0.5)
 #: range of a candidate conductivity temperature coefficient above its base value [1/K]; an insulation's
 #: conductivity rises with temperature (ISO 10456), so the lower bound is min(base, 0)
 COEFFICIENT_RANGE = 0.02
+#: a moisture study's lambda(w) candidate: b from 0 to the layer's own value plus this (ISO 10456:2007 Table 4's
+#: mass-based f_u of insulation materials reach about 4)
+MOISTURE_COEFFICIENT_RANGE = 4.0
 #: half-range of a candidate sensor offset: this many times the sensor's accuracy, and at least
 #: OFFSET_SPREAD times the standard deviation of its measured signal
 OFFSET_ACCURACIES = 2.0
@@ -97,7 +100,8 @@ class Extension:
     name : str
         Its parameter name, e.g. ``"depth[T3A]"``.
     kind : str
-        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient`` or ``offset``.
+        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient``,
+        ``moisture_conductivity_coefficient`` (a moisture study's lambda(w)) or ``offset``.
     table : dict
         Its ``[[calibration.parameters]]`` entry as written into the extended study.
     reason : str
@@ -237,6 +241,26 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
                 f"conductivity of insulation layer(s) {lab} {what} (lambda(T))",
             )
         )
+    # lambda(w) of each insulation layer of a moisture study (the ham engine computes lambda_dry (1 + b w / rho))
+    if study.has_moisture:
+        taken_w = {i for p in space.parameters if p.property == "moisture_conductivity_coefficient" for i in p.layers}
+        for i, lay in enumerate(wall.layers):
+            if i in taken_w or lay.is_massless or lay.conductivity is None or lay.conductivity >= INSULATION_LAMBDA:
+                continue
+            b0 = lay.moisture_conductivity_coefficient or 0.0
+            out.append(
+                Extension(
+                    f"moisture_conductivity_coefficient[{ids[i]}]",
+                    "moisture_conductivity_coefficient",
+                    {
+                        "layers": [ids[i]],
+                        "property": "moisture_conductivity_coefficient",
+                        "bounds": [0.0, b0 + MOISTURE_COEFFICIENT_RANGE],
+                        "bounds_kind": "absolute",
+                    },
+                    f"conductivity of insulation layer {ids[i]} depending on its water content (lambda(w))",
+                )
+            )
     for t in space.targets:
         name = f"offset[{t}]"
         if name in have:
