@@ -241,3 +241,183 @@ def stack_tables(materials: list[HygricMaterial]) -> tuple[np.ndarray, np.ndarra
     dlt = np.vstack([m.delta_ref for m in materials])
     thermal = np.array([[m.lambda_dry, m.lambda_w, m.rho_c_dry, m.lambda_t] for m in materials], dtype=float)
     return w, kir, dlt, thermal
+
+
+# ==================================================== closed forms of the catalogue and study files
+def kuenzel_storage(w_80: float, w_f: float) -> Callable:
+    """Kuenzel's approximation of the storage function ``w = w_f (b - 1) phi / (b - phi)`` (Kuenzel 1995,
+    the WUFI default when only ``w_80`` and the free saturation ``w_f`` are known); ``b`` from ``w(0.8) = w_80``.
+    """
+    b = 0.8 * (w_f - w_80) / (0.8 * w_f - w_80)
+
+    def w(pc):
+        phi = rh_from_suction(pc)
+        return w_f * (b - 1.0) * phi / (b - phi)
+
+    return w
+
+
+def kuenzel_diffusivity(absorption: float, w_f: float) -> Callable:
+    """Kuenzel's liquid diffusivity from the water absorption coefficient ``A`` [kg/(m2 s^0.5)]:
+    ``D_w(w) = 3.8 (A / w_f)^2 1000^(w / w_f - 1)`` [m2/s] (Kuenzel 1995, eq. 2.27)."""
+
+    def d(w):
+        return 3.8 * (absorption / w_f) ** 2 * 1000.0 ** (np.asarray(w, dtype=float) / w_f - 1.0)
+
+    return d
+
+
+def table_storage(phi: list[float], w: list[float]) -> Callable:
+    """A storage function tabulated against relative humidity, linear between points; 0 at phi = 0 and the
+    last value up to saturation unless the table gives them."""
+    p = np.asarray(phi, dtype=float)
+    v = np.asarray(w, dtype=float)
+    if p[0] > 0.0:
+        p, v = np.concatenate(([0.0], p)), np.concatenate(([0.0], v))
+
+    def f(pc):
+        return np.interp(rh_from_suction(pc), p, v)
+
+    return f
+
+
+def table_diffusivity(w: list[float], d: list[float]) -> Callable:
+    """A liquid diffusivity table ``D_w(w)`` [m2/s], log-linear between points, constant beyond the ends."""
+    wt = np.asarray(w, dtype=float)
+    ld = np.log(np.maximum(np.asarray(d, dtype=float), 1e-300))
+
+    def f(x):
+        return np.exp(np.interp(np.asarray(x, dtype=float), wt, ld))
+
+    return f
+
+
+#: The hygric keys of a layer table (study files, wall files, the material catalogue).
+HYGRIC_KEYS = (
+    "moisture_storage",
+    "liquid_transport",
+    "vapour_resistance_factor",
+    "vapour_resistance_shape",
+    "moisture_conductivity_coefficient",
+    "sorption_scale",
+    "liquid_transport_scale",
+)
+
+
+def saturation_content(storage: dict) -> float:
+    """The water content at capillary saturation [kg/m3] of a ``moisture_storage`` table."""
+    form = storage.get("form", "table")
+    if form == "kuenzel":
+        return float(storage["w_f"])
+    if form == "van_genuchten":
+        return float(storage["w_sat"])
+    return float(np.max(storage["w"]))
+
+
+def storage_function(storage: dict, where: str) -> Callable:
+    """The callable ``w(pc)`` of a ``moisture_storage`` table (checked by :class:`HygricMaterial`)."""
+    form = storage.get("form", "table")
+    try:
+        if form == "kuenzel":
+            w_80, w_f = float(storage["w_80"]), float(storage["w_f"])
+            if not (0.0 <= w_80 < 0.8 * w_f):
+                raise StudyError(
+                    [f"{where}.moisture_storage: needs 0 <= w_80 < 0.8 w_f, got w_80 = {w_80}, w_f = {w_f}"]
+                )
+            return kuenzel_storage(w_80, w_f)
+        if form == "van_genuchten":
+            modes = [(float(k), float(a), float(n), 1.0 - 1.0 / float(n)) for k, a, n in storage["modes"]]
+            return van_genuchten(float(storage["w_sat"]), modes)
+        if form == "table":
+            phi = [float(v) for v in storage["phi"]]
+            w = [float(v) for v in storage["w"]]
+            if len(phi) != len(w) or len(phi) < 2:
+                raise StudyError([f"{where}.moisture_storage: phi and w need the same length (>= 2)"])
+            if np.any(np.diff(phi) <= 0) or phi[0] < 0 or phi[-1] > 1:
+                raise StudyError([f"{where}.moisture_storage: phi must rise strictly within 0..1"])
+            if np.any(np.diff(w) < 0):
+                k = int(np.flatnonzero(np.diff(w) < 0)[0])
+                raise StudyError(
+                    [
+                        f"{where}.moisture_storage: storage function is not monotone: w falls from {w[k]:g} to "
+                        f"{w[k + 1]:g} kg/m3 as phi rises from {phi[k]:g} to {phi[k + 1]:g}"
+                    ]
+                )
+            return table_storage(phi, w)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise StudyError([f"{where}.moisture_storage: form {form!r} is incomplete or malformed ({exc})"]) from None
+    raise StudyError([f"{where}.moisture_storage: unknown form {form!r} (kuenzel, van_genuchten, table)"])
+
+
+def hygric_material(
+    name: str,
+    keys: dict,
+    *,
+    conductivity: float,
+    density: float,
+    specific_heat: float,
+    where: str | None = None,
+) -> HygricMaterial:
+    """A :class:`HygricMaterial` from a layer's thermal properties and its hygric keys (:data:`HYGRIC_KEYS`).
+
+    ``keys``: ``moisture_storage`` (a table ``{form = "kuenzel", w_80, w_f}``, ``{form = "van_genuchten",
+    w_sat, modes = [[k, a (1/Pa), n], ...]}`` or ``{phi = [...], w = [...]}``), ``vapour_resistance_factor``
+    (mu, >= 1; with ``vapour_resistance_shape`` p the HAMSTAD form ``mu / f(w)``), ``liquid_transport``
+    (``{form = "kuenzel", absorption}`` A [kg/(m2 s^0.5)], ``{form = "exp_polynomial", coefficients,
+    shift, scale}`` K_l(w) [s], ``{w = [...], diffusivity = [...]}`` D_w [m2/s]; absent: none),
+    ``moisture_conductivity_coefficient`` b (``lambda = lambda_dry (1 + b w / density)``, ISO 10456's f_u),
+    ``sorption_scale`` and ``liquid_transport_scale`` (multipliers, 1 by default).
+    """
+    where = where or f"material {name!r}"
+    for key in ("moisture_storage", "vapour_resistance_factor"):
+        if keys.get(key) is None:
+            raise StudyError([f"{where}: missing hygric key {key!r}"])
+    storage = dict(keys["moisture_storage"])
+    w_sat = saturation_content(storage)
+    base = storage_function(storage, where)
+    scale = float(keys.get("sorption_scale", 1.0))
+    if not scale > 0:
+        raise StudyError([f"{where}.sorption_scale: must be > 0, got {scale}"])
+    store = base if scale == 1.0 else (lambda pc: scale * base(pc))
+    mu = float(keys["vapour_resistance_factor"])
+    if not mu >= 1.0:
+        raise StudyError([f"{where}.vapour_resistance_factor: must be >= 1, got {mu:g}"])
+    p = keys.get("vapour_resistance_shape")
+    resistance = mu if p is None else resistance_factor_hamstad(mu, scale * w_sat, float(p))
+    lt = keys.get("liquid_transport")
+    lscale = float(keys.get("liquid_transport_scale", 1.0))
+    if not lscale >= 0:
+        raise StudyError([f"{where}.liquid_transport_scale: must be >= 0, got {lscale}"])
+    k_l = d_w = None
+    if lt:
+        lt = dict(lt)
+        form = lt.get("form", "table")
+        try:
+            if form == "kuenzel":
+                a = float(lt["absorption"])
+                if a > 0:
+                    d0 = kuenzel_diffusivity(a, scale * w_sat)
+                    d_w = lambda w: lscale * d0(w)  # noqa: E731
+            elif form == "exp_polynomial":
+                k0 = exp_polynomial(
+                    [float(c) for c in lt["coefficients"]], float(lt.get("shift", 0.0)), float(lt.get("scale", 1.0))
+                )
+                k_l = lambda w: lscale * k0(np.asarray(w, dtype=float) / scale)  # noqa: E731
+            elif form == "table":
+                d0 = table_diffusivity(lt["w"], lt["diffusivity"])
+                d_w = lambda w: lscale * d0(w)  # noqa: E731
+            else:
+                raise StudyError([f"{where}.liquid_transport: unknown form {form!r} (kuenzel, exp_polynomial, table)"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise StudyError([f"{where}.liquid_transport: form {form!r} is incomplete or malformed ({exc})"]) from None
+    b = float(keys.get("moisture_conductivity_coefficient", 0.0))
+    return HygricMaterial(
+        name=name,
+        storage=store,
+        lambda_dry=float(conductivity),
+        lambda_w=float(conductivity) * b / float(density),
+        rho_c_dry=float(density) * float(specific_heat),
+        resistance_factor=resistance,
+        liquid_conductivity=k_l,
+        moisture_diffusivity=d_w,
+    )

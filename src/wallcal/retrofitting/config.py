@@ -135,7 +135,7 @@ def _resolve_catalogue(d: dict, path: str, problems: Problems) -> dict | None:
             problems.add(f"{path}.material", materials.unknown_message(name))
             return None  # no follow-up 'required, missing' for the properties the material was to give
         return dict(d)
-    out = {k: v for k, v in mat.layer_keys().items() if "thermal_resistance" not in d}
+    out = {k: v for k, v in mat.layer_keys(d.get("thickness")).items() if "thermal_resistance" not in d}
     out.update(d)
     return out
 
