@@ -61,8 +61,11 @@ INITIAL_RH = 0.8
 #: verdict thresholds
 MOULD_LIMIT = 1.0
 DRY_RH = 0.80
-#: the solver's grid: cells of GRID_FIRST at faces and interfaces growing by GRID_RATIO to GRID_MAX
-GRID_FIRST, GRID_RATIO, GRID_MAX = 1e-3, 1.3, 0.02
+#: the solver's grid: cells of GRID_FIRST at faces and interfaces growing by GRID_RATIO to GRID_MAX. 5 mm at the
+#: interfaces: the interface conditions are those 2.5 mm into each material (where the mould index is read);
+#: finer cells make condensation against a vapour-tight layer in a non-capillary material very slow to solve
+#: (1 mm: about 100 times more steps) for a change of the interface RH in the third decimal
+GRID_FIRST, GRID_RATIO, GRID_MAX = 5e-3, 1.3, 0.02
 DT_MAX = 3600.0
 #: EPW missing-value codes of the rain fields
 MISSING_DEPTH, MISSING_QUANTITY, MISSING_WIND = 999.0, 99.0, 999.0
@@ -232,6 +235,7 @@ class HygroResult:
     runoff_kg_m2: float
     seconds: float
     stats: dict = field(default_factory=dict)
+    final_state: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def trend(self) -> float:
@@ -283,11 +287,13 @@ def periodic_run(
     initial: tuple[np.ndarray, np.ndarray] | None = None,
     decline: float = mould.DECLINE_COEFFICIENT,
     grid: tuple[float, float, float] = (GRID_FIRST, GRID_RATIO, GRID_MAX),
+    room_face: tuple[int, mould.MouldClass] | None = None,
 ) -> HygroResult:
     """Run the layers year after year until periodic (module docstring).
 
     ``initial``: (temperature, relative humidity) per cell to start from (default: the interior temperature
-    and ``INITIAL_RH`` everywhere); ``classes``: the mould class of each layer.
+    and ``INITIAL_RH`` everywhere); ``classes``: the mould class of each layer; ``room_face``: (j, class) gives
+    the exterior-side face of interface j (between layers j and j + 1) that class instead of layer j's.
     """
     import time
 
@@ -301,6 +307,19 @@ def periodic_run(
     if initial is None:
         t_init = np.full(g.dx.size, float(np.mean(np.atleast_1d(interior.temperature))))
         rh_init = np.full(g.dx.size, INITIAL_RH)
+    elif np.shape(initial[0]) != g.dx.shape:  # another grid (a draw with other thicknesses): start afresh
+        return periodic_run(
+            layers,
+            layer_ids,
+            classes,
+            exterior,
+            interior,
+            hours=hours,
+            max_years=max_years,
+            decline=decline,
+            grid=grid,
+            room_face=room_face,
+        )
     else:
         t_init, rh_init = initial
     water = [_layer_water(np.asarray(_w_of(g, rh_init)), g.dx, layer_of_cell, n_layers)]
@@ -325,10 +344,9 @@ def periodic_run(
     for j in range(n_layers - 1):
         cells_a = np.flatnonzero(layer_of_cell == j)
         cells_b = np.flatnonzero(layer_of_cell == j + 1)
+        class_a = room_face[1] if room_face is not None and room_face[0] == j else classes[j]
         interfaces.append(
-            Interface(
-                f"{layer_ids[j]}|{layer_ids[j + 1]}", int(cells_a[-1]), int(cells_b[0]), classes[j], classes[j + 1]
-            )
+            Interface(f"{layer_ids[j]}|{layer_ids[j + 1]}", int(cells_a[-1]), int(cells_b[0]), class_a, classes[j + 1])
         )
     n_i = len(interfaces)
     rh = np.empty((n_i, hours + 1))
@@ -365,6 +383,7 @@ def periodic_run(
         runoff_kg_m2=float(res.runoff[-1, 0]),
         seconds=time.perf_counter() - t0,
         stats={**stats, "cells": int(g.dx.size)},
+        final_state=(t_init, rh_init),
     )
 
 
@@ -377,4 +396,193 @@ def _w_of(g, rh) -> np.ndarray:
     return w
 
 
-MaterialOf = Callable[[object], HygricMaterial]
+# ============================================================================ layers: hygric data, mould classes
+#: Default mould sensitivity class of the catalogue's materials, from Ojanen et al. (2010), Table 1: untreated wood
+#: "very sensitive"; planed wood, paper-coated products and wood-based boards "sensitive"; cement- or plastic-based
+#: materials and mineral fibres "medium resistant" (mineral plasters, brick, concrete, calcium silicate taken as
+#: cement-like); glass and metal "resistant". Any other material: ``DEFAULT_CLASS``. The former room-side face of
+#: the wall, covered by interior insulation, is ``ROOM_FACE_CLASS`` whatever its material (paint, wallpaper paste
+#: and dust on it). ``[retrofit] mould_sensitivity`` overrides them by layer id or material name.
+DEFAULT_CLASSES = {
+    "timber": "very sensitive",
+    "osb": "sensitive",
+    "plywood": "sensitive",
+    "wood fibre board": "sensitive",
+    "cellulose": "sensitive",
+    "gypsum plasterboard": "sensitive",
+    "eps": "medium resistant",
+    "xps": "medium resistant",
+    "pir": "medium resistant",
+    "vapour control layer": "medium resistant",
+    "solid brick": "medium resistant",
+    "brick": "medium resistant",
+    "lime plaster": "medium resistant",
+    "gypsum plaster": "medium resistant",
+    "cement render": "medium resistant",
+    "concrete": "medium resistant",
+    "aerated concrete": "medium resistant",
+    "calcium silicate board": "medium resistant",
+    "mineral wool": "medium resistant",
+    "mineral wool board": "medium resistant",
+    "glass wool": "medium resistant",
+    "wind barrier": "medium resistant",
+}
+DEFAULT_CLASS = "sensitive"
+ROOM_FACE_CLASS = "sensitive"
+
+
+def hygric_keys(layer) -> dict | None:
+    """A layer's hygric keys: its own (``moisture_storage`` ...), else its catalogue material's (the layer's
+    own mu and scales win); None when it has none (or is a no-mass layer)."""
+    from ..materials import find
+
+    if layer.thermal_resistance is not None:
+        return None
+    own = layer.hygric_keys() if hasattr(layer, "hygric_keys") else {}
+    if "moisture_storage" in own:
+        return own
+    mat = find(layer.material) if layer.material else None
+    if mat is None or not mat.has_hygric:
+        return None
+    out = mat.layer_keys(layer.thickness, hygric=True)
+    out.update(own)
+    return out
+
+
+_MATERIALS: dict = {}
+
+
+def layer_material(layer, where: str) -> HygricMaterial:
+    """The layer's :class:`HygricMaterial` (cached on its keys and thermal properties).
+
+    Raises
+    ------
+    StudyError
+        One line naming ``where`` when the layer has no hygric properties.
+    """
+    import json
+
+    from ..errors import StudyError
+    from ..materials import catalogue
+    from ..moisture.materials import hygric_material
+
+    keys = hygric_keys(layer)
+    if keys is None:
+        with_data = ", ".join(sorted(n for n, m in catalogue().items() if m.has_hygric))
+        what = f"material {layer.material!r}" if layer.material else "no catalogue material"
+        raise StudyError(
+            [
+                f"{where} (layer {layer.id!r}, {what}): no hygric properties for the moisture run; give "
+                f"moisture_storage and vapour_resistance_factor (docs/moisture.md) or a catalogue material with "
+                f"hygric data ({with_data}), or set retrofit.moisture_check = false"
+            ]
+        )
+    key = (
+        layer.material or layer.id,
+        json.dumps(keys, sort_keys=True, default=float),
+        float(layer.conductivity),
+        float(layer.density),
+        float(layer.specific_heat),
+    )
+    mat = _MATERIALS.get(key)
+    if mat is None:
+        if len(_MATERIALS) > 4096:
+            _MATERIALS.clear()
+        mat = hygric_material(
+            f"{key[0]} ({len(_MATERIALS)})",
+            keys,
+            conductivity=key[2],
+            density=key[3],
+            specific_heat=key[4],
+            where=where,
+        )
+        _MATERIALS[key] = mat
+    return mat
+
+
+def layer_classes(wall, overrides: tuple[tuple[str, str], ...] = ()) -> list[mould.MouldClass]:
+    """Each layer's mould sensitivity class: ``overrides`` by layer id, then by material name (case-insensitive),
+    then :data:`DEFAULT_CLASSES`, else :data:`DEFAULT_CLASS`."""
+    by = {k: v for k, v in overrides}
+    by_low = {k.strip().lower(): v for k, v in overrides}
+    out = []
+    for layer in wall.layers:
+        name = by.get(layer.id) or by_low.get(layer.material.strip().lower()) if layer.material else by.get(layer.id)
+        if name is None:
+            name = DEFAULT_CLASSES.get(layer.material.strip().lower(), DEFAULT_CLASS)
+        out.append(mould.mould_class(name))
+    return out
+
+
+def ham_layers(wall, where_of: Callable[[int], str]) -> list[Layer]:
+    """The solver's layers of a wall (``where_of(k)`` names layer k in messages)."""
+    return [Layer(layer_material(layer, where_of(k)), layer.thickness) for k, layer in enumerate(wall.layers)]
+
+
+def missing_hygric(wall) -> list[str]:
+    """Ids of the wall's layers without hygric properties."""
+    return [layer.id for layer in wall.layers if hygric_keys(layer) is None]
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What a variant's run needs besides its wall (picklable, for cluster workers)."""
+
+    exterior: Boundary
+    interior: Boundary
+    hours: int
+    max_years: int
+    decline: float
+    overrides: tuple[tuple[str, str], ...]
+
+
+def room_face(wall, base_ids: set[str], overrides: tuple[tuple[str, str], ...] = ()):
+    """(j, class) for the former room-side face: the interface j after the innermost layer of the original wall when
+    layers were added inside it (None otherwise); an override of that layer's id or material wins."""
+    ids = [layer.id for layer in wall.layers]
+    inner = max((j for j, i in enumerate(ids) if i in base_ids), default=None)
+    if inner is None or inner == len(ids) - 1:
+        return None
+    layer = wall.layers[inner]
+    keys = {k.strip().lower() for k, _ in overrides}
+    if layer.id.strip().lower() in keys or layer.material.strip().lower() in keys:
+        return None
+    return inner, mould.mould_class(ROOM_FACE_CLASS)
+
+
+def run_wall(
+    wall, settings: RunSettings, where_of: Callable[[int], str], initial=None, base_ids: frozenset = frozenset()
+) -> HygroResult:
+    """One wall's periodic hygrothermal run with its interfaces' mould index (``base_ids``: the layer ids of the
+    wall before the variant, to find the former room-side face)."""
+    return periodic_run(
+        ham_layers(wall, where_of),
+        [layer.id for layer in wall.layers],
+        layer_classes(wall, settings.overrides),
+        settings.exterior,
+        settings.interior,
+        hours=settings.hours,
+        max_years=settings.max_years,
+        initial=initial,
+        decline=settings.decline,
+        room_face=room_face(wall, base_ids, settings.overrides),
+    )
+
+
+def draw_task(task) -> tuple[float, float, int]:
+    """A posterior draw's run (top level, for :class:`wallcal.cluster.Executor`): ``(wall, settings, initial)``
+    -> (mould index at the critical interface, water trend [kg/(m2 year)], years)."""
+    wall, settings, initial, base_ids = task
+    r = run_wall(wall, settings, lambda k: f"layer {k}", initial=initial, base_ids=base_ids)
+    return r.mould_max, r.trend, r.years
+
+
+def run_draws(walls, settings: RunSettings, initial, base_ids: frozenset = frozenset()) -> np.ndarray:
+    """Every draw's (mould index, trend, years), on the active :class:`wallcal.cluster.Executor` when there is one,
+    else one after the other here. ``initial``: the point wall's end state (the draws start from it)."""
+    from ..cluster import current_executor
+
+    tasks = [(w, settings, initial, base_ids) for w in walls]
+    ex = current_executor()
+    out = ex.map(draw_task, tasks) if ex is not None and len(tasks) > 1 else [draw_task(t) for t in tasks]
+    return np.array(out, dtype=float).reshape(len(tasks), 3)
