@@ -223,15 +223,51 @@ def test_en15026_annex_a_every_cell_inside_its_limits():
     _assert_all_pass(run)
 
 
-def test_hamstad5_lies_inside_the_participants_envelope_at_60_days():
+def test_hamstad5_checks_balances_bounds_and_refinement():
     run = cases.run_case("hamstad5")
-    profile = run.checks[run.checks["x_m"].notna()]
-    assert set(profile["quantity"]) == {"water_content", "relative_humidity"}
-    assert len(profile) == 2 * 144  # every position where at least five of the six codes report
+    q = set(run.checks["quantity"])
+    assert {"min_relative_humidity", "max_relative_humidity", "min_water_content", "max_saturation_ratio"} <= q
+    assert {"refinement_water_content", "refinement_relative_humidity", "refinement_temperature"} <= q
+    assert {"mass_balance_error", "energy_balance_error"} <= q
+    refine = run.checks[run.checks["quantity"] == "refinement_water_content"]
+    assert len(refine) == len(cases.HAMSTAD5_POSITIONS)
+    assert np.allclose(refine["upper"] - refine["lower"], 2 * 1.0)
+    if cases.participants_file() is None:
+        assert not {"water_content", "relative_humidity"} & q  # no envelope without the participants' file
+    else:
+        assert (run.checks["quantity"] == "water_content").sum() == 144
     _assert_all_pass(run)
     # the moisture gathers behind the insulation: the peak is in the insulation next to the mortar
     w = run.result.water_content[-1]
     assert 0.380 < run.result.x[np.argmax(w)] < 0.382 and 55 < w.max() < 65
+
+
+def test_hamstad5_refinement_check_fails_on_a_coarse_grid(monkeypatch):
+    """The self-check has teeth: a 10x coarser default grid fails it."""
+    real = cases._hamstad5_run
+
+    def coarse(refine=1):
+        if refine == 1:
+            b, m, i = cases.hamstad5_materials()
+            from wallcal.moisture.solver import Boundary, Layer, make_grid, solve
+
+            grid = make_grid([Layer(b, 0.365), Layer(m, 0.015), Layer(i, 0.04)], first=2e-3, ratio=1.5, max_cell=0.05)
+            days = [1.0, 10.0, 30.0, 60.0]
+            res = solve(
+                grid,
+                Boundary("air", 0.0, 0.8, h=25.0, beta=1.8382e-7),
+                Boundary("air", 20.0, 0.6, h=8.0, beta=5.8823e-8),
+                25.0,
+                0.6,
+                [d * 86400.0 for d in days],
+                dt_max=3600.0,
+            )
+            return res, grid, days
+        return real(refine)
+
+    monkeypatch.setattr(cases, "_hamstad5_run", coarse)
+    run = cases.run_case("hamstad5")
+    assert not run.checks[run.checks["quantity"].str.startswith("refinement")]["passed"].all()
 
 
 def test_en15026_with_a_scalar_resistance_factor_fails_table_a1():

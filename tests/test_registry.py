@@ -94,9 +94,10 @@ bounds = [-0.5, 2.0]
 
 
 def test_registry_is_the_one_list_of_engines():
-    assert engines.ENGINE_NAMES == ("fd-cn", "fd-implicit", "fd-exact", "fd-reference", "energyplus")
+    assert engines.ENGINE_NAMES == ("fd-cn", "fd-implicit", "fd-exact", "fd-reference", "energyplus", "ham")
     assert set(engines.engine_names()) >= set(engines.ENGINE_NAMES) | {"energyplus-cn", "energyplus-implicit"}
-    assert engines.engine_names(base_case=True) == engines.ENGINE_NAMES  # fd-reference among them
+    # fd-reference among them; ham (heat and moisture, needs hygric data) is not a base case
+    assert engines.engine_names(base_case=True) == engines.ENGINE_NAMES[:-1]
     assert [engines.scheme_of(n) for n in ("fd-cn", "fd-implicit", "energyplus-implicit")] == [
         "cn",
         "implicit",
@@ -301,6 +302,8 @@ def test_boundary_types_are_one_list():
         "surface_temperature",
         "air_temperature",
         "heat_flux",
+        "surface_temperature_humidity",  # the ham engine's (heat-only engines refuse them: moisture capability)
+        "air_temperature_humidity",
     )
     assert base.BOUNDARY_TYPES == boundary_types.boundary_type_names()
     assert dict(boundary.CODES) == {
@@ -308,6 +311,8 @@ def test_boundary_types_are_one_list():
         "air_temperature": 1,
         "sol_air_temperature": 1,
         "heat_flux": 2,
+        "surface_temperature_humidity": 0,
+        "air_temperature_humidity": 1,
     }
     src = (SRC / "study.py").read_text()
     assert "BOUNDARY_TYPES" not in src and "sol_air_temperature" not in src

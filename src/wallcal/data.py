@@ -377,6 +377,31 @@ def _convert(values: np.ndarray, unit: str, positive: str, offset: float = 0.0) 
     return out
 
 
+def humidity_name(face: str) -> str:
+    """The measurements frame's column of a face's relative humidity (fraction)."""
+    return f"{face}_relative_humidity"
+
+
+def _humidity(values: np.ndarray, col: str, unit: str, key: str, path) -> np.ndarray:
+    """A relative humidity column as a fraction, refusing a fraction above 1 and a percent column whose values
+    are all <= 1 (a fraction read as percent)."""
+    ok = values[np.isfinite(values)]
+    if unit == "fraction":
+        if ok.size and ok.max() > 1.0:
+            i = int(np.flatnonzero(values > 1.0)[0])
+            raise DataError(
+                f"{path}: column {show(col)} holds a relative humidity of {values[i]:g} at data row {i + 1} (line "
+                f'{i + 2}), above 1, but {key} says "fraction"; if the column is in percent, say unit = "percent"'
+            )
+        return values.copy()
+    if ok.size and ok.max() <= 1.0:
+        raise DataError(
+            f"{path}: column {show(col)}: every value is <= 1 (largest {ok.max():g}), but {key} says "
+            '"percent": the column looks like a fraction; say "fraction"'
+        )
+    return values / 100.0
+
+
 def _check_temperature(values_C: np.ndarray, col: str, unit: str, path) -> None:
     """Temperatures below absolute zero are a unit or logger error, never data."""
     bad = values_C < -KELVIN
@@ -461,6 +486,8 @@ def _study_columns(study: Study) -> dict[str, str]:
     out = {}
     for face, b in (("exterior", study.exterior), ("interior", study.interior)):
         out.setdefault(b.column, f"boundary.{face}.column")
+        if b.humidity_column:
+            out.setdefault(b.humidity_column, f"boundary.{face}.humidity_column")
     for i, s in enumerate(study.sensors):
         out.setdefault(s.column, f"sensors[{i}].column")
     return out
@@ -654,6 +681,8 @@ def _read_measurements(study: Study) -> Measurements:
         needed = {spec.time_column: (time_kind, "data.time_column")}
         for face, b in (("exterior", study.exterior), ("interior", study.interior)):
             needed.setdefault(b.column, ("float", f"boundary.{face}.column"))
+            if b.humidity_column:
+                needed.setdefault(b.humidity_column, ("float", f"boundary.{face}.humidity_column"))
         for i, sensor in enumerate(study.sensors):
             needed.setdefault(sensor.column, ("float", f"sensors[{i}].column"))
         raw = read_table(path, spec.separator, needed)
@@ -664,8 +693,18 @@ def _read_measurements(study: Study) -> Measurements:
         cols[face] = _convert(vals, b.unit, b.positive, b.offset)
         if b.type != "heat_flux":
             _check_temperature(cols[face], b.column, b.unit, path)
+        if b.humidity_column:
+            key = f"boundary.{face}.humidity_column"
+            vals = _numeric(_column(raw, b.humidity_column, key, path), b.humidity_column, path)
+            rh = _humidity(vals, b.humidity_column, b.humidity_unit, f"boundary.{face}.humidity_unit", path)
+            if not np.isfinite(rh).any():
+                raise DataError(f"{path}: column {show(b.humidity_column)} ({key}) has no value")
+            cols[humidity_name(face)] = np.clip(rh, 1e-4, 1.0)  # a saturated sensor may read 100.5 %
     for i, s in enumerate(study.sensors):
         vals = _numeric(_column(raw, s.column, f"sensors[{i}].column", path), s.column, path)
+        if s.quantity == "relative_humidity":
+            cols[s.name] = _humidity(vals, s.column, s.unit, f"sensors[{i}].unit", path) + s.offset
+            continue
         cols[s.name] = _convert(vals, s.unit, s.positive, s.offset)
         if s.quantity == "temperature":
             _check_temperature(cols[s.name], s.column, s.unit, path)

@@ -50,7 +50,8 @@ class Material:
 
     def resistance_factor(self, thickness: float | None = None) -> float:
         """mu [-]; for a membrane given by ``sd``, ``sd / thickness`` (the catalogue's own value without one)."""
-        if self.sd is not None and thickness:
+        ok = isinstance(thickness, int | float) and not isinstance(thickness, bool) and 1e-9 < thickness < 1e3
+        if self.sd is not None and ok:  # anything else is the layer table's own problem, reported there
             return max(1.0, float(self.sd) / float(thickness))
         return float(self.vapour_resistance_factor)
 

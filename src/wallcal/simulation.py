@@ -27,9 +27,9 @@ import numpy as np
 import pandas as pd
 
 from . import metrics as _metrics
-from .data import Measurements, load_measurements, summarize
-from .engines import engine_for, get_engine, scheme_of
-from .engines.base import BoundaryInput, Engine, EngineOptions, EngineOutput, SimulationInput
+from .data import Measurements, humidity_name, load_measurements, summarize
+from .engines import engine_class, engine_for, get_engine, scheme_of
+from .engines.base import BoundaryInput, Engine, EngineOptions, EngineOutput, MoistureInput, SimulationInput
 from .errors import StudyError, check_finite
 from .grid import intervals_for_layer
 from .study import Study
@@ -202,6 +202,14 @@ def prepare(
         raise StudyError([f"simulation.time_step: must be > 0, got {dt}"])
     if C <= 0 or not math.isfinite(C):
         raise StudyError([f"simulation.grid_constant: must be > 0, got {C}"])
+    if study.has_moisture and not engine_class(requested).capabilities.moisture:
+        raise StudyError(
+            [
+                f"simulation.engine: the {requested} engine computes heat only, and this study has moisture "
+                '(relative_humidity / water_content sensors or humidity boundaries): use engine = "ham"'
+            ],
+            source=str(study.path) if study.path else None,
+        )
     choice = engine_for(requested, needs, purpose=purpose or "this task")
     rule = node_rule or sim.node_rule
     key = (
@@ -250,13 +258,18 @@ def _prepare(study: Study, engine: str, dt: float, C: float, node_rule: str, mea
         ok = np.isfinite(v)
         return np.interp(grid_s, t_s[ok], v[ok])
 
-    ext = BoundaryInput(study.exterior.type, on_grid("exterior"), study.exterior.surface_coefficient)
-    intr = BoundaryInput(study.interior.type, on_grid("interior"), study.interior.surface_coefficient)
+    def boundary(face, b):
+        rh = on_grid(humidity_name(face)) if b.humidity_column else None
+        return BoundaryInput(b.type, on_grid(face), b.surface_coefficient, rh, b.vapour_coefficient)
+
+    ext = boundary("exterior", study.exterior)
+    intr = boundary("interior", study.interior)
     in_period = (frame.index >= start) & (frame.index <= end)
     times = frame.index[in_period]
     measured = frame.loc[in_period, [s.name for s in study.sensors]]
     positions = (times - t0).total_seconds().to_numpy() / dt
     probes = tuple(s.name for s in study.sensors if s.quantity == "temperature")
+    moisture = _moisture_input(study, frame, t0, ext, intr) if study.has_moisture else None
     faces = tuple(dict.fromkeys(s.face for s in study.sensors if s.quantity == "heat_flux" and s.depth is None))
     depths = tuple((s.name, s.depth) for s in study.sensors if s.quantity == "heat_flux" and s.depth is not None)
     inp = SimulationInput(
@@ -273,8 +286,61 @@ def _prepare(study: Study, engine: str, dt: float, C: float, node_rule: str, mea
         node_rule=node_rule,
         scheme=scheme_of(engine),
         options=EngineOptions(stiff_limit=sim.stiff_limit),
+        moisture=moisture,
     )
     return Prepared(study=study, measurements=meas, inp=inp, times=times, measured=measured, engine_name=engine)
+
+
+def _moisture_input(study: Study, frame: pd.DataFrame, t0, ext: BoundaryInput, intr: BoundaryInput) -> MoistureInput:
+    """The moisture outputs and initial state of a moisture study (``[simulation] initial_state``)."""
+    sim = study.simulation
+    rh_probes = tuple(s.name for s in study.sensors if s.quantity == "relative_humidity")
+    w_probes = tuple(s.name for s in study.sensors if s.quantity == "water_content")
+    if sim.initial_state == "constant":
+        return MoistureInput(
+            rh_probes,
+            w_probes,
+            "constant",
+            temperature=(float(sim.initial_temperature),),
+            relative_humidity=None if sim.initial_relative_humidity is None else (sim.initial_relative_humidity,),
+            water_content=sim.initial_water_content,
+            profiles=sim.profiles,
+        )
+    # the first data row: boundary values at the faces, the probes' first values in between (a periodic run
+    # starts its first pass from it, then from its own end state)
+    wall = study.wall
+    first = frame.loc[frame.index >= t0]
+    t_pts = {0.0: float(ext.values[0]), wall.thickness: float(intr.values[0])}
+    rh_pts = {}
+    for b, x in ((ext, 0.0), (intr, wall.thickness)):
+        if b.relative_humidity is not None:
+            rh_pts[x] = float(b.relative_humidity[0])
+    for s in study.sensors:
+        if s.quantity not in ("temperature", "relative_humidity"):
+            continue
+        col = first[s.name].to_numpy(dtype=float)
+        ok = np.flatnonzero(np.isfinite(col))
+        if not ok.size:
+            continue
+        depth = wall.probe(s.name).depth
+        if s.quantity == "temperature":
+            t_pts[depth] = float(col[ok[0]])
+        else:
+            rh_pts[depth] = float(np.clip(col[ok[0]], 1e-4, 1.0))
+    if not rh_pts:
+        rh_pts = {0.0: 0.5}
+    depths = np.union1d(list(t_pts), list(rh_pts))
+    tx, tv = zip(*sorted(t_pts.items()), strict=True)
+    rx, rv = zip(*sorted(rh_pts.items()), strict=True)
+    return MoistureInput(
+        rh_probes,
+        w_probes,
+        "periodic" if sim.initial_state == "periodic" else "profile",
+        depths=tuple(float(d) for d in depths),
+        temperature=tuple(float(v) for v in np.interp(depths, tx, tv)),
+        relative_humidity=tuple(float(v) for v in np.interp(depths, rx, rv)),
+        profiles=sim.profiles,
+    )
 
 
 def node_count(wall, dt: float, C: float, node_rule: str) -> int:
@@ -360,6 +426,7 @@ class SimulationResult:
     info: dict = field(default_factory=dict)
     spikes: pd.DataFrame | None = None
     bridged_gaps: pd.DataFrame | None = None
+    profiles: pd.DataFrame | None = None
 
     def write(self, out_dir: str | Path) -> Path:
         """Write ``simulated.csv``, ``metrics.csv``, ``summary.csv``, ``measured.csv`` and
@@ -381,6 +448,8 @@ class SimulationResult:
         self.summary.to_csv(d / "summary.csv", float_format="%.6g")
         if self.spikes is not None and len(self.spikes):
             self.spikes.to_csv(d / "spikes.csv", index=False)
+        if self.profiles is not None:
+            self.profiles.to_csv(d / "profiles.csv", index=False, float_format="%.6g")
         (d / "info.json").write_text(json.dumps(self.info, indent=2, default=str))
 
 
@@ -408,10 +477,14 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
     names = [s.name for s in study.sensors]
     cols = []
     for s in study.sensors:
-        if s.quantity != "heat_flux":
-            cols.append(out.temperatures[s.name])
-        else:
+        if s.quantity == "heat_flux":
             cols.append(out.fluxes[s.name if s.depth is not None else s.face])
+        elif s.quantity == "relative_humidity":
+            cols.append(out.relative_humidity[s.name])
+        elif s.quantity == "water_content":
+            cols.append(out.water_content[s.name])
+        else:
+            cols.append(out.temperatures[s.name])
     sim = np.empty((len(names), len(prep.times)))  # one row per sensor: the layout of a DataFrame's block
     for k, c in enumerate(cols):
         sim[k] = c
@@ -446,6 +519,7 @@ def result_from_output(prep: Prepared, out: EngineOutput, engine: str) -> Simula
         info=info,
         spikes=prep.measurements.spikes,
         bridged_gaps=prep.measurements.bridged_gaps,
+        profiles=out.profiles,
     )
 
 

@@ -37,7 +37,11 @@ __all__ = [
     "wall_to_dict",
 ]
 
-QUANTITIES = ("temperature", "heat_flux")
+QUANTITIES = ("temperature", "heat_flux", "relative_humidity", "water_content")
+#: quantities only the engines with the ``moisture`` capability compute (``ham``)
+MOISTURE_QUANTITIES = ("relative_humidity", "water_content")
+HUMIDITY_UNITS = ("fraction", "percent")
+INITIAL_STATES = ("first_row", "constant", "periodic")
 TEMPERATURE_UNITS = ("degC", "K")
 FLUX_DIRECTIONS = ("towards_interior", "towards_exterior")
 TIME_FORMATS = ("iso", "elapsed_seconds")
@@ -53,7 +57,9 @@ class BoundarySpec:
     column; ``surface_coefficient`` [W/(m2K)] for air_temperature; ``unit``:
     degC | K for temperatures; ``positive``: direction of a heat-flux column;
     ``offset``: added to the column after the unit and sign conversion (a declared
-    sensor correction, degC or W/m2).
+    sensor correction, degC or W/m2). The humidity types (``surface_temperature_humidity``,
+    ``air_temperature_humidity``; the ``ham`` engine) add ``humidity_column`` (relative humidity, read as a
+    fraction), its ``humidity_unit`` (fraction | percent) and, for air, ``vapour_coefficient`` beta [s/m].
     """
 
     face: str
@@ -63,15 +69,20 @@ class BoundarySpec:
     unit: str = "degC"
     positive: str = "towards_interior"
     offset: float = 0.0
+    humidity_column: str | None = None
+    humidity_unit: str = "fraction"
+    vapour_coefficient: float | None = None
 
 
 @dataclass(frozen=True)
 class SensorSpec:
     """A measured signal compared with the model.
 
-    ``quantity``: temperature (``name`` is a probe of the wall) or heat_flux (at
-    ``face``, or at ``depth`` [m from the exterior face] inside the wall). ``accuracy`` [degC or
-    W/m2] or ``accuracy_relative`` [-].
+    ``quantity``: temperature (``name`` is a probe of the wall), heat_flux (at
+    ``face``, or at ``depth`` [m from the exterior face] inside the wall), relative_humidity (a probe; read
+    as a fraction, ``unit`` fraction | percent) or water_content [kg/m3] (a probe): the last two need the
+    ``ham`` engine. ``accuracy`` [degC, W/m2, fraction or kg/m3: the quantity's unit in wallcal, a percent
+    sensor's accuracy is given in percent and converted] or ``accuracy_relative`` [-].
     ``weight`` [-] enters weighted objectives. ``offset`` is added to the column after
     the unit and sign conversion.
     """
@@ -148,6 +159,12 @@ class SimulationSpec:
     grid_constant: float = 2.0
     node_rule: str = "wallcal"
     stiff_limit: float | None = None  # None: the engine's derived limit 1 / (1 - theta)
+    # the ham engine's initial state (docs/moisture.md): first_row | constant | periodic
+    initial_state: str = "first_row"
+    initial_temperature: float | None = None  # degC
+    initial_relative_humidity: float | None = None  # fraction
+    initial_water_content: float | None = None  # kg/m3
+    profiles: bool = False  # write the cell states (profiles.csv)
 
 
 @dataclass(frozen=True)
@@ -179,6 +196,13 @@ class Study:
     raw: dict = field(default_factory=dict, compare=False, repr=False)
     sha256: str = ""
 
+    @property
+    def has_moisture(self) -> bool:
+        """The study needs an engine with the ``moisture`` capability (humidity sensors or boundaries)."""
+        return any(s.quantity in MOISTURE_QUANTITIES for s in self.sensors) or any(
+            boundary_type(b.type).moisture for b in (self.exterior, self.interior)
+        )
+
     def sensor(self, name: str) -> SensorSpec:
         for s in self.sensors:
             if s.name == name:
@@ -208,7 +232,17 @@ DATA_KEYS = (
     "files",
 )
 DATA_FILE_KEYS = ("file", "time_column", "columns", "prefix", "separator")
-BOUNDARY_KEYS = ("type", "column", "surface_coefficient", "unit", "positive", "offset")
+BOUNDARY_KEYS = (
+    "type",
+    "column",
+    "surface_coefficient",
+    "unit",
+    "positive",
+    "offset",
+    "humidity_column",
+    "humidity_unit",
+    "vapour_coefficient",
+)
 SENSOR_KEYS = (
     "name",
     "column",
@@ -224,7 +258,18 @@ SENSOR_KEYS = (
     "offset",
 )
 PERIOD_KEYS = ("warmup_start", "start", "end")
-SIMULATION_KEYS = ("engine", "time_step", "grid_constant", "node_rule", "stiff_limit")
+SIMULATION_KEYS = (
+    "engine",
+    "time_step",
+    "grid_constant",
+    "node_rule",
+    "stiff_limit",
+    "initial_state",
+    "initial_temperature",
+    "initial_relative_humidity",
+    "initial_water_content",
+    "profiles",
+)
 
 
 def _parse_data_files(dt_: Table, problems: Problems, base_dir: Path | None) -> tuple[DataFileSpec, ...]:
@@ -386,6 +431,21 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             if ft.has("positive") and not is_flux:
                 problems.add(ft.at("positive"), f"only for type = {flux}")
             offset = ft.num("offset", 0.0, ge=-1e6, le=1e6)
+            hcol, hunit, beta = None, "fraction", None
+            if bkind is not None and bkind.moisture:
+                hcol = ft.str("humidity_column")
+                hunit = ft.str("humidity_unit", choices=HUMIDITY_UNITS)
+                if bkind.needs_vapour_coefficient:
+                    beta = ft.num("vapour_coefficient", ge=0.0, le=1e-5)
+                elif ft.has("vapour_coefficient"):
+                    problems.add(ft.at("vapour_coefficient"), 'only for type = "air_temperature_humidity"')
+            else:
+                for k in ("humidity_column", "humidity_unit", "vapour_coefficient"):
+                    if ft.has(k):
+                        problems.add(
+                            ft.at(k),
+                            'only for type = "surface_temperature_humidity" or "air_temperature_humidity"',
+                        )
             if btype and col:
                 bounds[face] = BoundarySpec(
                     face=face,
@@ -395,6 +455,9 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
                     unit=unit or "degC",
                     positive=positive or "towards_interior",
                     offset=offset or 0.0,
+                    humidity_column=hcol,
+                    humidity_unit=hunit or "fraction",
+                    vapour_coefficient=beta,
                 )
         if all(b is not None and not boundary_type(b.type).fixes_temperature_level for b in bounds.values()):
             problems.add(
@@ -442,7 +505,14 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         else:
             if sn.has("depth") or sn.has("depth_from"):
                 problems.add(sn.at("depth"), "only for heat_flux sensors; a temperature sensor's depth is its probe's")
-            unit = sn.str("unit", "degC", choices=TEMPERATURE_UNITS)
+            if quantity == "relative_humidity":
+                unit = sn.str("unit", choices=HUMIDITY_UNITS)  # required: a percent column read as a fraction
+                if unit == "percent" and acc is not None:
+                    acc = acc / 100.0
+            elif quantity == "water_content":
+                unit = sn.str("unit", "kg/m3", choices=("kg/m3",))
+            else:
+                unit = sn.str("unit", "degC", choices=TEMPERATURE_UNITS)
             if sn.has("face"):
                 problems.add(sn.at("face"), "only for heat_flux sensors; a temperature sensor is a probe of the wall")
             if sn.has("positive"):
@@ -502,7 +572,25 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             grid_constant=smt.num("grid_constant", 2.0, gt=0.0, le=1000.0) or 2.0,
             node_rule=smt.str("node_rule", "wallcal", choices=("wallcal", "energyplus")) or "wallcal",
             stiff_limit=smt.num("stiff_limit", None, gt=0.0),
+            initial_state=smt.str("initial_state", "first_row", choices=INITIAL_STATES) or "first_row",
+            initial_temperature=smt.num("initial_temperature", None, ge=-100.0, le=200.0),
+            initial_relative_humidity=smt.num("initial_relative_humidity", None, gt=0.0, le=1.0),
+            initial_water_content=smt.num("initial_water_content", None, ge=0.0),
+            profiles=smt.bool("profiles", False),
         )
+        if sim.initial_state == "constant":
+            if sim.initial_temperature is None:
+                problems.add(smt.at("initial_temperature"), 'required with initial_state = "constant" (degC)')
+            if (sim.initial_relative_humidity is None) == (sim.initial_water_content is None):
+                problems.add(
+                    smt.path,
+                    'initial_state = "constant" needs initial_relative_humidity (a fraction) or '
+                    "initial_water_content (kg/m3), one of them",
+                )
+        else:
+            for k in ("initial_temperature", "initial_relative_humidity", "initial_water_content"):
+                if smt.has(k):
+                    problems.add(smt.at(k), 'only with initial_state = "constant"')
     ctx = StudyContext(wall, wall_clean, tuple(sensors), frozenset(sensor_names), base_dir)
     features = parse_features(raw if isinstance(raw, dict) else {}, problems, ctx)
 
@@ -526,4 +614,29 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
         features=features,
         raw=raw,
     )
+    if study.has_moisture:
+        _check_moisture(study, source)
     return study
+
+
+def _check_moisture(study: Study, source: str | None) -> None:
+    """A moisture study's layers must carry every hygric key the ham engine needs, and a constant initial
+    water content must not exceed any layer's capillary saturation."""
+    problems: list[str] = []
+    sim = study.simulation
+    for i, layer in enumerate(study.wall.layers):
+        where = f"wall.layers[{i}] (id {layer.id!r})"
+        try:
+            mat = layer.hygric_material(where)
+        except StudyError as exc:
+            problems.extend(exc.problems)
+            continue
+        if sim.initial_state == "constant" and sim.initial_water_content is not None:
+            w_sat = float(mat.w[0])
+            if sim.initial_water_content > w_sat * (1 + 1e-9):
+                problems.append(
+                    f"simulation.initial_water_content: {sim.initial_water_content:g} kg/m3 is above the capillary "
+                    f"saturation {w_sat:.4g} kg/m3 of {where}"
+                )
+    if problems:
+        raise StudyError(problems, source=source)

@@ -41,6 +41,10 @@ LIMITS = {
     "contact_resistance": (0.0, 10.0),  # m2K/W
     "thermal_resistance": (1e-4, 100.0),  # m2K/W (no-mass layer)
     "vapour_resistance_factor": (1e-3, 1e8),  # - (mu; a vapour barrier reaches 1e7)
+    "moisture_conductivity_coefficient": (0.0, 1000.0),  # - (b in lambda_dry (1 + b w / density))
+    "sorption_scale": (1e-3, 1e3),  # - (multiplies the storage function)
+    "liquid_transport_scale": (0.0, 1e6),  # - (multiplies the liquid transport coefficient)
+    "vapour_resistance_shape": (1e-3, 1.0),  # - (HAMSTAD's p in mu(w))
 }
 #: Most layers in a wall (real walls have a few dozen; each layer costs nodes and arrays).
 MAX_LAYERS = 200
@@ -62,7 +66,13 @@ LAYER_PROPERTIES = (
     "contact_resistance",
     "thickness",
     "thermal_resistance",
+    "vapour_resistance_factor",
+    "moisture_conductivity_coefficient",
+    "sorption_scale",
+    "liquid_transport_scale",
 )
+#: A layer's hygric tables kept as JSON text in :attr:`Layer.hygric` (its scalar hygric keys are fields).
+HYGRIC_TABLE_KEYS = ("moisture_storage", "liquid_transport", "vapour_resistance_shape")
 
 
 @dataclass(frozen=True)
@@ -98,7 +108,16 @@ class Layer:
         For a no-mass resistive layer: its resistance [m2K/W].
     vapour_resistance_factor : float or None
         Water vapour diffusion resistance factor mu [-] (ISO 10456); needed only by
-        the ISO 13788 condensation check (:mod:`wallcal.retrofitting.glaser`).
+        the ISO 13788 condensation check (:mod:`wallcal.retrofitting.glaser`) and the
+        heat-and-moisture engine.
+    hygric : str
+        The layer's hygric tables (:data:`HYGRIC_TABLE_KEYS`: ``moisture_storage``, ``liquid_transport``,
+        ``vapour_resistance_shape``) as JSON text ('' when it has none); :meth:`hygric_keys` gives them as a
+        dict with the scalar hygric fields. ``docs/moisture.md`` describes the keys.
+    moisture_conductivity_coefficient : float or None
+        b [-] in ``lambda = lambda_dry (1 + b w / density)`` (heat-and-moisture engine).
+    sorption_scale, liquid_transport_scale : float
+        Multipliers of the storage function and the liquid transport coefficient (calibration parameters).
     """
 
     id: str
@@ -113,6 +132,43 @@ class Layer:
     contact_resistance: float = 0.0
     thermal_resistance: float | None = None
     vapour_resistance_factor: float | None = None
+    hygric: str = ""
+    moisture_conductivity_coefficient: float | None = None
+    sorption_scale: float = 1.0
+    liquid_transport_scale: float = 1.0
+
+    def hygric_keys(self) -> dict:
+        """Every hygric key of the layer (``wallcal.moisture.materials.HYGRIC_KEYS``) that it has."""
+        import json
+
+        out = json.loads(self.hygric) if self.hygric else {}
+        if self.vapour_resistance_factor is not None:
+            out["vapour_resistance_factor"] = self.vapour_resistance_factor
+        if self.moisture_conductivity_coefficient is not None:
+            out["moisture_conductivity_coefficient"] = self.moisture_conductivity_coefficient
+        if self.sorption_scale != 1.0:
+            out["sorption_scale"] = self.sorption_scale
+        if self.liquid_transport_scale != 1.0:
+            out["liquid_transport_scale"] = self.liquid_transport_scale
+        return out
+
+    def hygric_material(self, where: str | None = None):
+        """The layer's :class:`wallcal.moisture.materials.HygricMaterial` (StudyError naming the layer and the
+        missing or bad key)."""
+        from .moisture.materials import hygric_material
+
+        if self.is_massless:
+            from .errors import StudyError
+
+            raise StudyError([f"{where or f'layer {self.id!r}'}: a no-mass layer cannot carry moisture"])
+        return hygric_material(
+            self.material or self.id,
+            self.hygric_keys(),
+            conductivity=float(self.conductivity_at(self.reference_temperature)),
+            density=float(self.density),
+            specific_heat=float(self.specific_heat),
+            where=where or f"layer {self.id!r}",
+        )
 
     @property
     def is_massless(self) -> bool:

@@ -11,9 +11,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from . import materials as catalogue
 from .errors import StudyError, clip, show
 from .schema import MISSING, Problems, Table, check_number, describe, read_toml
-from .wall import LIMITS, MAX_LAYERS, MAX_PROBES, MAX_TABLE_POINTS, Layer, Probe, Wall
+from .wall import HYGRIC_TABLE_KEYS, LIMITS, MAX_LAYERS, MAX_PROBES, MAX_TABLE_POINTS, Layer, Probe, Wall
 
 FACES = ("exterior", "interior")
 
@@ -30,6 +31,13 @@ LAYER_KEYS = (
     "contact_resistance",
     "vapour_resistance_factor",
     "thermal_resistance",
+    "moisture_storage",
+    "liquid_transport",
+    "vapour_resistance_shape",
+    "moisture_conductivity_coefficient",
+    "sorption_scale",
+    "liquid_transport_scale",
+    "hygric_file",
 )
 PROBE_KEYS = ("name", "depth", "depth_from", "side")
 WALL_KEYS = ("name", "description", "layers", "probes", "file")
@@ -90,6 +98,7 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None, chain: tuple
     ids: set[str] = set()
     geometry_thickness = 0.0
     for lt in t.tables("layers", LAYER_KEYS):
+        _complete_layer(lt, problems, base_dir)
         lid = lt.data.get("id")
         if isinstance(lid, int) and not isinstance(lid, bool):
             lid = str(lid)
@@ -159,6 +168,7 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None, chain: tuple
             "vapour_resistance_factor", None, gt=0.0, **_limits("vapour_resistance_factor")
         )
         material = lt.str("material", "")
+        kw.update(_hygric(lt, problems))
         if (
             None in (lid, thickness)
             or any(kw.get(k) is None for k in ("density", "specific_heat", "thermal_resistance") if k in kw)
@@ -202,6 +212,77 @@ def parse_wall(t: Table, problems: Problems, base_dir: Path | None, chain: tuple
     if not layers:
         return None
     return Wall(layers=tuple(layers), probes=tuple(probes), name=name or "", description=desc or "")
+
+
+def _complete_layer(lt: Table, problems: Problems, base_dir: Path | None) -> None:
+    """Fill a layer table's missing keys from its ``hygric_file`` (a DELPHIN ``.m6`` file) and from its
+    catalogue ``material`` (:mod:`wallcal.materials`), in that order: keys given in the table win."""
+    if not lt.ok:
+        return
+    given = lt.data
+    fill: dict[str, Any] = {}
+    name = given.get("material")
+    mat = catalogue.find(name) if isinstance(name, str) else None
+    if mat is not None:
+        d = given.get("thickness")
+        thickness = (
+            d if isinstance(d, float) and 0 < d < 1e3 else (float(d) if type(d) is int and 0 < d < 1000 else None)
+        )
+        fill.update(mat.layer_keys(thickness, hygric=True))
+    fname = given.get("hygric_file")
+    if fname is not None:
+        if not isinstance(fname, str):
+            problems.add(lt.at("hygric_file"), f"must be a file name (a string), got {describe(fname)}")
+        else:
+            from .moisture.delphin import read_m6
+
+            path = (base_dir / fname) if base_dir else Path(fname)
+            try:
+                fill.update(read_m6(path))
+            except StudyError as exc:
+                for p in exc.problems:
+                    problems.add(lt.at("hygric_file"), p)
+    if "thermal_resistance" in given:
+        for k in ("conductivity", "density", "specific_heat"):
+            fill.pop(k, None)
+    if fill:
+        lt.data = {**fill, **given}
+
+
+def _hygric(lt: Table, problems: Problems) -> dict:
+    """The hygric fields of a layer table (checked for shape here; the physics when a moisture engine needs
+    them, :meth:`wallcal.wall.Layer.hygric_material`)."""
+    import json
+
+    out: dict[str, Any] = {}
+    tables = {}
+    for k in ("moisture_storage", "liquid_transport"):
+        v = lt.raw(k)
+        if v is None:
+            continue
+        if not isinstance(v, dict):
+            problems.add(lt.at(k), 'must be a table such as {form = "kuenzel", ...}, got ' + describe(v))
+            continue
+        tables[k] = v
+    if "moisture_storage" in tables:
+        from .moisture.materials import storage_function
+
+        try:  # a storage table or closed form that cannot be a storage function is refused at once
+            storage_function(tables["moisture_storage"], lt.path)
+        except StudyError as exc:
+            problems.extend(exc.problems)
+    shape = lt.num("vapour_resistance_shape", None, **_limits("vapour_resistance_shape"))
+    if shape is not None:
+        tables["vapour_resistance_shape"] = shape
+    if tables:
+        out["hygric"] = json.dumps({k: tables[k] for k in HYGRIC_TABLE_KEYS if k in tables}, sort_keys=True)
+    out["moisture_conductivity_coefficient"] = lt.num(
+        "moisture_conductivity_coefficient", None, **_limits("moisture_conductivity_coefficient")
+    )
+    for k in ("sorption_scale", "liquid_transport_scale"):
+        v = lt.num(k, 1.0, **_limits(k))
+        out[k] = 1.0 if v is None else v
+    return out
 
 
 def _parse_table(v, path, problems):
@@ -274,8 +355,7 @@ def wall_to_dict(wall: Wall) -> dict:
             d["reference_temperature"] = layer.reference_temperature
         if layer.contact_resistance:
             d["contact_resistance"] = layer.contact_resistance
-        if layer.vapour_resistance_factor is not None:
-            d["vapour_resistance_factor"] = layer.vapour_resistance_factor
+        d.update({k: v for k, v in layer.hygric_keys().items() if k not in d})
         layers.append(d)
     out: dict[str, Any] = {}
     if wall.name:

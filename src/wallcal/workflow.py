@@ -116,7 +116,8 @@ def _available_engines(prepared) -> tuple[list[str], str]:
     that it is not installed."""
     from .engines import available, engine_names
 
-    engines, why = available(engine_names(base_case=True), prepared.inp)
+    # the study's own engine too (ham, for a moisture study, is no base case of heat-only studies)
+    engines, why = available(tuple(dict.fromkeys((*engine_names(base_case=True), prepared.engine_name))), prepared.inp)
     return engines, "; ".join(f"{name}: {reason}" for name, reason in why.items())
 
 

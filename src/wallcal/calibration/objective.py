@@ -122,6 +122,8 @@ class Evaluator:
         for s in sensors:
             if s.quantity == "heat_flux":
                 self.keys.append(("fluxes", s.name if s.depth is not None else s.face))
+            elif s.quantity in ("relative_humidity", "water_content"):  # the moisture engines' outputs
+                self.keys.append((s.quantity, s.name))
             else:
                 self.keys.append(("temperatures", s.name))
             y = prepared.measured[s.name].to_numpy(dtype=float)

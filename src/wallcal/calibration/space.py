@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..engines.base import PropertyArrays
+from ..engines.base import HYGRIC_PROPERTIES, PropertyArrays
 from ..errors import StudyError, closest
 from ..schema import Problems, Table, check_number, describe
 from ..wall import Wall
@@ -31,6 +31,7 @@ LAYER_PROPERTIES = (
     "specific_heat",
     "conductivity_temperature_coefficient",
     "contact_resistance",
+    *HYGRIC_PROPERTIES,  # the moisture engines' (ham): mu, b of lambda(w), the sorption and liquid scales
 )
 PROBE_PROPERTIES = ("depth",)
 SENSOR_PROPERTIES = ("offset",)
@@ -39,8 +40,13 @@ ALGORITHMS = ("pso-hj", "least-squares", "differential-evolution", "nelder-mead"
 CALIBRATION_KEYS = ("targets", "objective", "algorithm", "seed", "parameters", "settings", "reference_wall")
 PARAMETER_KEYS = ("layers", "probe", "sensor", "property", "bounds", "bounds_kind")
 #: physical lower limits (exclusive) per property
-_POSITIVE = {"conductivity": 0.0, "density": 0.0, "specific_heat": 0.0}
-_NONNEGATIVE = {"contact_resistance": 0.0, "depth": 0.0}
+_POSITIVE = {"conductivity": 0.0, "density": 0.0, "specific_heat": 0.0, "sorption_scale": 0.0}
+_NONNEGATIVE = {
+    "contact_resistance": 0.0,
+    "depth": 0.0,
+    "moisture_conductivity_coefficient": 0.0,
+    "liquid_transport_scale": 0.0,
+}
 
 
 @dataclass(frozen=True)
@@ -181,7 +187,10 @@ class ParameterSpace:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         nc = X.shape[0]
         base = PropertyArrays.from_walls([wall])
-        props = PropertyArrays(**{k: np.repeat(v, nc, axis=0) for k, v in base.__dict__.items()})
+        props = PropertyArrays(
+            **{k: np.repeat(v, nc, axis=0) for k, v in base.__dict__.items() if k != "hygric"},
+            hygric={k: np.repeat(v, nc, axis=0) for k, v in base.hygric.items()},
+        )
         depths: dict[str, np.ndarray] = {}
         for j, p in enumerate(self.parameters):
             if p.probe is not None:
@@ -194,6 +203,8 @@ class ParameterSpace:
                     props.temperature_coefficient[:, li] = X[:, j]
                 elif p.property == "contact_resistance":
                     props.contact_resistance[:, li] = X[:, j]
+                elif p.property in props.hygric:
+                    props.hygric[p.property][:, li] = X[:, j]
         # volumetric heat capacity = density * specific heat, each possibly a parameter
         rho = np.array([[layer.density or 0.0 for layer in wall.layers]] * nc, dtype=float)
         cp = np.array([[layer.specific_heat or 0.0 for layer in wall.layers]] * nc, dtype=float)
@@ -481,6 +492,9 @@ def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=(
         problems.add(
             pt.at("bounds"), f"the base value {base:g} of {pname} is outside the bounds [{lower:g}, {upper:g}]"
         )
+        return None
+    if prop == "vapour_resistance_factor" and lower < 1:
+        problems.add(pt.at("bounds"), f"{pname} must stay >= 1 over the whole box; lower bound is {lower:g}")
         return None
     if prop in _POSITIVE and lower <= 0:
         problems.add(pt.at("bounds"), f"{pname} must stay > 0 over the whole box; lower bound is {lower:g}")

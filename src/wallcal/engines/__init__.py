@@ -1,6 +1,7 @@
 """The engine registry: the one place that knows engines by name.
 
-Built in: ``fd-cn``, ``fd-implicit``, ``fd-exact`` (exact in time for linear walls), ``fd-reference`` and
+Built in: ``fd-cn``, ``fd-implicit``, ``fd-exact`` (exact in time for linear walls), ``fd-reference``, ``ham``
+(coupled heat and moisture, :mod:`wallcal.engines.ham`) and
 ``energyplus`` (optional extra), plus the comparison names ``energyplus-cn`` / ``energyplus-implicit``
 (EnergyPlus with its CondFD scheme chosen).
 Every engine implements the contract of :mod:`wallcal.engines.base` and is registered here by one line of
@@ -127,6 +128,7 @@ BUILT_IN = (
         runs_as="energyplus",
         node_rule="energyplus (EnergyPlus' own)",
     ),  # fmt: skip
+    EngineEntry("ham", ".ham:HamEngine", scheme="implicit", base_case=False),
 )
 
 _REGISTRY: dict[str, EngineEntry] = {e.name: e for e in BUILT_IN}

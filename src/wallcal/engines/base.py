@@ -46,6 +46,13 @@ from .boundary_types import boundary_type_names
 #: The built-in boundary types (the registry, :mod:`wallcal.engines.boundary_types`, has every one).
 BOUNDARY_TYPES = BUILT_IN_BOUNDARY_TYPES
 FACES = ("exterior", "interior")
+#: Hygric layer properties a calibration may change (fields of :class:`~wallcal.wall.Layer`).
+HYGRIC_PROPERTIES = (
+    "vapour_resistance_factor",
+    "moisture_conductivity_coefficient",
+    "sorption_scale",
+    "liquid_transport_scale",
+)
 
 
 @dataclass(frozen=True)
@@ -59,7 +66,9 @@ class BoundaryInput:
         ``"air_temperature"`` (values: air temperature [degC], with
         ``surface_coefficient`` [W/(m2K)]), ``"sol_air_temperature"`` (an exterior face in the
         weather: values the sol-air temperature [degC], with the combined exterior coefficient as
-        ``surface_coefficient``; see :mod:`wallcal.engines.boundary`), or ``"heat_flux"`` (values: heat
+        ``surface_coefficient``; see :mod:`wallcal.engines.boundary`), ``"surface_temperature_humidity"`` /
+        ``"air_temperature_humidity"`` (the same with ``relative_humidity``, and for air the
+        ``vapour_coefficient``: engines with the ``moisture`` capability), or ``"heat_flux"`` (values: heat
         flux density at this face [W/m2], positive towards the interior as
         everywhere in wallcal: at the exterior face that is the flux entering
         the wall, at the interior face the flux leaving it into the room).
@@ -68,11 +77,44 @@ class BoundaryInput:
     surface_coefficient : float or None
         Combined surface heat transfer coefficient [W/(m2K)] for ``air_temperature`` and
         ``sol_air_temperature``.
+    relative_humidity : ndarray or None
+        Relative humidity (fraction) at the grid times, for the humidity boundary types.
+    vapour_coefficient : float or None
+        Surface vapour transfer coefficient beta [s/m] (``air_temperature_humidity``).
     """
 
     type: str
     values: np.ndarray
     surface_coefficient: float | None = None
+    relative_humidity: np.ndarray | None = None
+    vapour_coefficient: float | None = None
+
+
+@dataclass(frozen=True)
+class MoistureInput:
+    """What an engine with the ``moisture`` capability needs beyond the heat input.
+
+    Parameters
+    ----------
+    probes_relative_humidity, probes_water_content : tuple of str
+        Probes whose relative humidity (fraction) and water content [kg/m3] are wanted.
+    initial : str
+        ``"constant"`` (``temperature`` [degC] and ``relative_humidity`` (fraction) or ``water_content``
+        [kg/m3], each one value), ``"profile"`` (``depths`` [m] with ``temperature`` and
+        ``relative_humidity`` one value per depth, interpolated between them: the first data row), or
+        ``"periodic"`` (the run repeated from its own end state until it repeats).
+    profiles : bool
+        Return the cell states at the output times (:attr:`EngineOutput.profiles`).
+    """
+
+    probes_relative_humidity: tuple[str, ...] = ()
+    probes_water_content: tuple[str, ...] = ()
+    initial: str = "constant"
+    depths: tuple[float, ...] = ()
+    temperature: tuple[float, ...] = (20.0,)
+    relative_humidity: tuple[float, ...] | None = (0.5,)
+    water_content: float | None = None
+    profiles: bool = False
 
 
 @dataclass(frozen=True)
@@ -144,6 +186,8 @@ class SimulationInput:
     initial : str
         ``"steady"``: start from the steady profile of the first boundary values.
     options : EngineOptions
+    moisture : MoistureInput or None
+        Moisture outputs and initial state (None: a heat-only run).
     """
 
     wall: Wall
@@ -160,6 +204,7 @@ class SimulationInput:
     scheme: str = "cn"
     initial: str = "steady"
     options: EngineOptions = EngineOptions()
+    moisture: MoistureInput | None = None
 
     @property
     def n_steps(self) -> int:
@@ -187,12 +232,20 @@ class EngineOutput:
     final_state : ndarray or None
         Node temperatures [degC] on the engine's own grid at the end of the run (engines with the
         ``initial_state`` capability): what a later run may start from (a periodic year).
+    relative_humidity, water_content : dict[str, ndarray]
+        Probe name -> relative humidity (fraction) and water content [kg/m3] at the output times (engines
+        with the ``moisture`` capability).
+    profiles : DataFrame or None
+        The cell states at the output times when asked for (:attr:`MoistureInput.profiles`).
     """
 
     temperatures: dict[str, np.ndarray]
     fluxes: dict[str, np.ndarray]
     info: dict = field(default_factory=dict)
     final_state: np.ndarray | None = None
+    relative_humidity: dict[str, np.ndarray] = field(default_factory=dict)
+    water_content: dict[str, np.ndarray] = field(default_factory=dict)
+    profiles: pd.DataFrame | None = None
 
 
 @dataclass
@@ -204,6 +257,8 @@ class BatchOutput:
     fluxes: dict[str, np.ndarray]
     info: dict = field(default_factory=dict)
     final_state: np.ndarray | None = None
+    relative_humidity: dict[str, np.ndarray] = field(default_factory=dict)
+    water_content: dict[str, np.ndarray] = field(default_factory=dict)
 
     def output(self, c: int) -> EngineOutput:
         """The :class:`EngineOutput` of candidate ``c``."""
@@ -212,6 +267,8 @@ class BatchOutput:
             {k: v[c] for k, v in self.fluxes.items()},
             dict(self.info),
             None if self.final_state is None else self.final_state[c],
+            {k: v[c] for k, v in self.relative_humidity.items()},
+            {k: v[c] for k, v in self.water_content.items()},
         )
 
 
@@ -221,7 +278,9 @@ class PropertyArrays:
 
     Units: thickness [m], conductivity [W/(m K)] at reference temperature,
     volumetric_heat_capacity [J/(m3 K)], temperature coefficient [1/K],
-    reference temperature [degC], contact and thermal resistances [m2K/W].
+    reference temperature [degC], contact and thermal resistances [m2K/W]; ``hygric``: the hygric layer
+    properties a calibration changes (:data:`HYGRIC_PROPERTIES` names -> arrays of the same shape; only the
+    ``moisture`` engines read them).
     """
 
     thickness: np.ndarray
@@ -231,6 +290,7 @@ class PropertyArrays:
     reference_temperature: np.ndarray
     contact_resistance: np.ndarray
     thermal_resistance: np.ndarray
+    hygric: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n_candidates(self) -> int:
@@ -238,7 +298,8 @@ class PropertyArrays:
 
     def take(self, index) -> PropertyArrays:
         """The candidates at ``index`` (an integer array or a boolean mask)."""
-        return PropertyArrays(**{f.name: getattr(self, f.name)[index] for f in dataclasses.fields(self)})
+        out = {f.name: getattr(self, f.name)[index] for f in dataclasses.fields(self) if f.name != "hygric"}
+        return PropertyArrays(**out, hygric={k: v[index] for k, v in self.hygric.items()})
 
     def line_arrays(self) -> tuple[np.ndarray, ...]:
         """The arrays :func:`assemble_lines` takes: thickness, conductivity, volumetric heat capacity, contact
@@ -267,6 +328,7 @@ class PropertyArrays:
             reference_temperature=arr(lambda L: L.reference_temperature),
             contact_resistance=arr(lambda L: L.contact_resistance),
             thermal_resistance=arr(lambda L: L.thermal_resistance if L.is_massless else 0.0),
+            hygric={k: arr(lambda L, k=k: getattr(L, k) or 0.0) for k in HYGRIC_PROPERTIES},
         )
 
 
@@ -310,6 +372,9 @@ class WallBatch:
                     reference_temperature=float(pa.reference_temperature[c, i]),
                     contact_resistance=float(pa.contact_resistance[c, i]),
                 )
+                for k, v in pa.hygric.items():
+                    if v[c, i] != (getattr(layer, k) or 0.0):
+                        changes[k] = float(v[c, i])
                 rho_c = float(pa.volumetric_heat_capacity[c, i])
                 if rho_c != layer.volumetric_heat_capacity:  # keep the density, move the specific heat
                     changes["specific_heat"] = rho_c / layer.density
@@ -350,6 +415,9 @@ class Capabilities:
     initial_state : bool
         A run may start from given node temperatures (``run(..., initial_state=...)``) and returns
         its end state (``final_state``): periodic runs such as a weather year repeated until it repeats.
+    moisture : bool
+        Coupled heat and moisture: humidity boundaries, ``relative_humidity`` and ``water_content``
+        outputs (:class:`MoistureInput`).
     """
 
     batches: bool
@@ -362,6 +430,7 @@ class Capabilities:
     substitute: str | None = None
     substitute_verified: str = ""
     initial_state: bool = False
+    moisture: bool = False
 
     def accepted_boundary_types(self) -> tuple[str, ...]:
         """The boundary types this engine accepts (every registered one unless it lists its own)."""
@@ -380,6 +449,7 @@ CAPABILITY_WORDS = {
     "contact_resistance": "contact resistances",
     "massless_layers": "no-mass layers",
     "initial_state": "runs from a given state",
+    "moisture": "moisture (relative humidity and water content)",
 }
 
 
@@ -408,6 +478,13 @@ class Engine:
         capabilities and :meth:`check_time_step` refuse. An engine with more rules extends the list
         (``super().problems(inp) + [...]``)."""
         cap, out = self.capabilities, []
+        if not cap.moisture and (
+            inp.moisture is not None or any(getattr(inp, f).relative_humidity is not None for f in FACES)
+        ):
+            out.append(
+                f"the {self.name} engine computes heat only, and this input has moisture (humidity boundaries or "
+                'relative_humidity / water_content outputs): use the engine "ham"'
+            )
         for face in FACES:
             b = getattr(inp, face)
             accepted = cap.accepted_boundary_types()
@@ -490,6 +567,10 @@ def stack_outputs(engine: str, probes: Sequence[str], outs: Sequence[EngineOutpu
         temperatures={k: np.stack([o.temperatures[k] for o in outs]) for k in probes},
         fluxes={k: np.stack([o.fluxes[k] for o in outs]) for k in outs[0].fluxes} if outs else {},
         info={"engine": engine, "runs": [o.info for o in outs]},
+        relative_humidity={k: np.stack([o.relative_humidity[k] for o in outs]) for k in outs[0].relative_humidity}
+        if outs
+        else {},
+        water_content={k: np.stack([o.water_content[k] for o in outs]) for k in outs[0].water_content} if outs else {},
     )
 
 

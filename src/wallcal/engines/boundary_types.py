@@ -5,7 +5,8 @@ Each type is one :class:`BoundaryType` line: its name, how the engines' schemes 
 ``"dirichlet"`` a known face temperature, ``"robin"`` an exchange ``h (u - T_s)`` with a temperature ``u``
 through a surface coefficient, ``"neumann"`` a given heat flux density; :mod:`wallcal.engines.boundary` has
 the kernels' code of each kind), the quantity of its values (``"temperature"`` [degC] or ``"heat_flux"``
-[W/m2], positive towards the interior) and whether a study may name it. A new boundary type that is one of
+[W/m2], positive towards the interior), whether a study may name it, and whether it also imposes a relative
+humidity (``moisture``: the ``ham`` engine's surface and air types). A new boundary type that is one of
 these kinds with another input (as the sol-air temperature is a Robin face with an equivalent temperature)
 is one module calling :func:`register_boundary_type`; the study loader, the contract's checks and the fd
 engines' kernel codes follow.
@@ -28,11 +29,17 @@ class BoundaryType:
     quantity: str
     in_studies: bool = True
     description: str = ""
+    moisture: bool = False
 
     @property
     def needs_surface_coefficient(self) -> bool:
         """The face exchanges with its input through a surface coefficient [W/(m2K)]."""
         return self.kind == "robin"
+
+    @property
+    def needs_vapour_coefficient(self) -> bool:
+        """The face exchanges vapour with the air through a vapour transfer coefficient [s/m]."""
+        return self.moisture and self.kind == "robin"
 
     @property
     def fixes_temperature_level(self) -> bool:
@@ -44,16 +51,17 @@ _TYPES: dict[str, BoundaryType] = {}
 
 
 def register_boundary_type(
-    name: str, kind: str, quantity: str, *, in_studies: bool = True, description: str = ""
+    name: str, kind: str, quantity: str, *, in_studies: bool = True, description: str = "", moisture: bool = False
 ) -> BoundaryType:
-    """Register a boundary type (a name not yet taken)."""
+    """Register a boundary type (a name not yet taken); ``moisture``: it also imposes a relative humidity
+    (engines with the ``moisture`` capability only)."""
     if name in _TYPES:
         raise ValueError(f"boundary type {name!r} is already registered")
     if kind not in KINDS:
         raise ValueError(f"boundary type {name!r}: kind must be one of {KINDS}, got {kind!r}")
     if quantity not in QUANTITIES:
         raise ValueError(f"boundary type {name!r}: quantity must be one of {QUANTITIES}, got {quantity!r}")
-    bt = BoundaryType(name, kind, quantity, in_studies, description)
+    bt = BoundaryType(name, kind, quantity, in_studies, description, moisture)
     _TYPES[name] = bt
     return bt
 
@@ -88,6 +96,21 @@ register_boundary_type(
     "coefficient (built from a weather file by wallcal.retrofitting.boundary.year_boundaries)",
 )
 register_boundary_type("heat_flux", "neumann", "heat_flux", description="imposed heat flux density")
+register_boundary_type(
+    "surface_temperature_humidity",
+    "dirichlet",
+    "temperature",
+    moisture=True,
+    description="imposed surface temperature and relative humidity (a PASSYS cell's faces; ham engine)",
+)
+register_boundary_type(
+    "air_temperature_humidity",
+    "robin",
+    "temperature",
+    moisture=True,
+    description="air temperature and relative humidity through a surface coefficient and a vapour transfer "
+    "coefficient (ham engine)",
+)
 
 #: The built-in types (registered above).
 BUILT_IN = boundary_type_names()

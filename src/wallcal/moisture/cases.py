@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -235,43 +236,89 @@ def en15026() -> CaseRun:
     return _finish("en15026", rows, res, start)
 
 
-def hamstad5() -> CaseRun:
-    """HAMSTAD 5: brick / mortar / capillary-active insulation; at 60 days w and RH against the envelope
-    (lowest to highest) of the six participating codes' results, at every position where at least five
-    report."""
-    start = time.perf_counter()
-    days = [1.0, 10.0, 30.0, 60.0]
+#: HAMSTAD 5's refinement self-check: the largest allowed difference between the default run and a run on a
+#: twice-refined grid with half the largest step, at :data:`HAMSTAD5_POSITIONS` at 60 days
+HAMSTAD5_REFINEMENT_TOLERANCE = {"water_content": 1.0, "relative_humidity": 0.005, "temperature": 0.05}
+#: where the refinement self-check compares [m from the exterior face]: every 10 mm in the brick, and 12
+#: positions in the mortar and the insulation (the wet zone at their interface)
+HAMSTAD5_POSITIONS = np.concatenate(
+    [np.arange(0.005, 0.365, 0.01), [0.366, 0.37, 0.375, 0.379, 0.3805, 0.381, 0.382, 0.385, 0.39, 0.40, 0.41, 0.419]]
+)
+#: the participants' results (not part of wallcal; used when present), relative to the repository's root
+HAMSTAD5_PARTICIPANTS = Path("..") / "shared" / "data" / "ham" / "hamstad" / "bm5_participants.csv"
+
+
+def _hamstad5_run(refine: int = 1):
     brick, mortar, insulation = hamstad5_materials()
     grid = make_grid(
-        [Layer(brick, 0.365), Layer(mortar, 0.015), Layer(insulation, 0.040)], first=1e-4, ratio=1.2, max_cell=5e-3
+        [Layer(brick, 0.365), Layer(mortar, 0.015), Layer(insulation, 0.040)],
+        first=1e-4 / refine,
+        ratio=1.2 ** (1.0 / refine),
+        max_cell=5e-3 / refine,
     )
     ext = Boundary("air", 0.0, 0.8, h=25.0, beta=1.8382e-7)
     inn = Boundary("air", 20.0, 0.6, h=8.0, beta=5.8823e-8)
-    res = solve(grid, ext, inn, 25.0, 0.6, [d * DAY for d in days], dt_max=HOUR)
-    ref = _table("hamstad5_participants.csv")
-    env = ref.groupby("x_mm").agg(
-        n=("w", "count"), w_lo=("w", "min"), w_hi=("w", "max"), phi_lo=("phi", "min"), phi_hi=("phi", "max")
-    )
-    env = env[env["n"] >= 5]
+    days = [1.0, 10.0, 30.0, 60.0]
+    res = solve(grid, ext, inn, 25.0, 0.6, [d * DAY for d in days], dt_max=HOUR / refine)
+    return res, grid, days
+
+
+def participants_file() -> Path | None:
+    """The HAMSTAD 5 participants' results beside the repository (:data:`HAMSTAD5_PARTICIPANTS`), if there."""
+    root = Path(__file__).resolve().parents[3]
+    path = root / HAMSTAD5_PARTICIPANTS
+    return path if path.is_file() else None
+
+
+def _row(quantity, day, x, value, lower, upper) -> dict:
+    return {
+        "case": "hamstad5",
+        "quantity": quantity,
+        "day": day,
+        "x_m": x,
+        "value": float(value),
+        "lower": float(lower),
+        "upper": float(upper),
+    }
+
+
+def hamstad5() -> CaseRun:
+    """HAMSTAD 5: brick / mortar / capillary-active insulation, 60 days.
+
+    HAMSTAD gives no reference solution for this benchmark, and wallcal bundles none of the participants'
+    results. The checks are the run's own: mass and energy balance errors; physical bounds (0 <= RH <= 1 and
+    0 <= w <= w_sat in every cell at every output time); a refinement self-check (at 60 days, w, RH and T at
+    :data:`HAMSTAD5_POSITIONS` within :data:`HAMSTAD5_REFINEMENT_TOLERANCE` of a run on a grid twice as fine
+    with half the largest step). When the participants' results are found beside the repository
+    (:data:`HAMSTAD5_PARTICIPANTS`: columns ``code, x_mm, w, phi``), also the envelope check: w and RH at
+    60 days between the lowest and the highest of the codes' values, at every position where at least five
+    codes report."""
+    start = time.perf_counter()
+    res, grid, days = _hamstad5_run()
+    fine, _, _ = _hamstad5_run(2)
     k = days.index(60.0)
     rows = []
-    for x_mm, e in env.iterrows():
-        x = x_mm / 1000.0
-        for q, values, lo, hi in (
-            ("water_content", res.water_content, e["w_lo"], e["w_hi"]),
-            ("relative_humidity", res.relative_humidity, e["phi_lo"], e["phi_hi"]),
-        ):
-            rows.append(
-                {
-                    "case": "hamstad5",
-                    "quantity": q,
-                    "day": 60.0,
-                    "x_m": x,
-                    "value": _profile_at(res, k, x, values),
-                    "lower": lo,
-                    "upper": hi,
-                }
-            )
+    rh, w = res.relative_humidity, res.water_content
+    w_sat = np.array([m.w[0] for m in grid.materials])[grid.mat]  # w at pc = 1 Pa: capillary saturation
+    for j, d in enumerate(days):
+        rows.append(_row("min_relative_humidity", d, np.nan, rh[j].min(), 0.0, 1.0))
+        rows.append(_row("max_relative_humidity", d, np.nan, rh[j].max(), 0.0, 1.0))
+        rows.append(_row("min_water_content", d, np.nan, w[j].min(), 0.0, np.inf))
+        rows.append(_row("max_saturation_ratio", d, np.nan, (w[j] / w_sat).max(), 0.0, 1.0))
+    for q, tol in HAMSTAD5_REFINEMENT_TOLERANCE.items():
+        for x in HAMSTAD5_POSITIONS:
+            ref = _profile_at(fine, k, x, getattr(fine, q))
+            rows.append(_row(f"refinement_{q}", 60.0, x, _profile_at(res, k, x, getattr(res, q)), ref - tol, ref + tol))
+    path = participants_file()
+    if path is not None:
+        ref = pd.read_csv(path)
+        env = ref.groupby("x_mm").agg(
+            n=("w", "count"), w_lo=("w", "min"), w_hi=("w", "max"), phi_lo=("phi", "min"), phi_hi=("phi", "max")
+        )
+        for x_mm, e in env[env["n"] >= 5].iterrows():
+            x = x_mm / 1000.0
+            rows.append(_row("water_content", 60.0, x, _profile_at(res, k, x, w), e["w_lo"], e["w_hi"]))
+            rows.append(_row("relative_humidity", 60.0, x, _profile_at(res, k, x, rh), e["phi_lo"], e["phi_hi"]))
     rows += _balance_rows("hamstad5", res, np.array(days))
     return _finish("hamstad5", rows, res, start)
 

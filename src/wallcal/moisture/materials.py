@@ -311,7 +311,30 @@ def saturation_content(storage: dict) -> float:
         return float(storage["w_f"])
     if form == "van_genuchten":
         return float(storage["w_sat"])
-    return float(np.max(storage["w"]))
+    return float(np.max(storage["w"]))  # table, suction_table
+
+
+def suction_table_storage(log10_pc: list[float], w: list[float]) -> Callable:
+    """A storage function tabulated against ``log10(pc)`` (DELPHIN's ``Theta_l(pC)``), linear between points,
+    constant beyond the ends."""
+    x = np.asarray(log10_pc, dtype=float)
+    v = np.asarray(w, dtype=float)
+
+    def f(pc):
+        return np.interp(np.log10(np.asarray(pc, dtype=float)), x, v)
+
+    return f
+
+
+def conductivity_table(w: list[float], log10_k: list[float]) -> Callable:
+    """A liquid conductivity table ``log10 K_l(w)`` [s] (DELPHIN's ``lgKl``), linear in the logarithm."""
+    wt = np.asarray(w, dtype=float)
+    lk = np.asarray(log10_k, dtype=float)
+
+    def f(x):
+        return 10.0 ** np.interp(np.asarray(x, dtype=float), wt, lk)
+
+    return f
 
 
 def storage_function(storage: dict, where: str) -> Callable:
@@ -344,9 +367,25 @@ def storage_function(storage: dict, where: str) -> Callable:
                     ]
                 )
             return table_storage(phi, w)
-    except (KeyError, TypeError, ValueError) as exc:
+        if form == "suction_table":
+            x = [float(v) for v in storage["log10_pc"]]
+            w = [float(v) for v in storage["w"]]
+            if len(x) != len(w) or len(x) < 2 or np.any(np.diff(x) <= 0):
+                raise StudyError([f"{where}.moisture_storage: log10_pc must rise strictly, one w per point (>= 2)"])
+            if np.any(np.diff(w) > 0):
+                k = int(np.flatnonzero(np.diff(w) > 0)[0])
+                raise StudyError(
+                    [
+                        f"{where}.moisture_storage: storage function is not monotone: w rises from {w[k]:g} to "
+                        f"{w[k + 1]:g} kg/m3 as log10(pc) rises from {x[k]:g} to {x[k + 1]:g}"
+                    ]
+                )
+            return suction_table_storage(x, w)
+    except (KeyError, TypeError, ValueError, OverflowError, ZeroDivisionError) as exc:
         raise StudyError([f"{where}.moisture_storage: form {form!r} is incomplete or malformed ({exc})"]) from None
-    raise StudyError([f"{where}.moisture_storage: unknown form {form!r} (kuenzel, van_genuchten, table)"])
+    raise StudyError(
+        [f"{where}.moisture_storage: unknown form {form!r} (kuenzel, van_genuchten, table, suction_table)"]
+    )
 
 
 def hygric_material(
@@ -371,7 +410,9 @@ def hygric_material(
     where = where or f"material {name!r}"
     for key in ("moisture_storage", "vapour_resistance_factor"):
         if keys.get(key) is None:
-            raise StudyError([f"{where}: missing hygric key {key!r}"])
+            raise StudyError(
+                [f'{where}: missing hygric key {key!r} (give it, a catalogue material = "..." or a hygric_file)']
+            )
     storage = dict(keys["moisture_storage"])
     w_sat = saturation_content(storage)
     base = storage_function(storage, where)
@@ -406,18 +447,27 @@ def hygric_material(
             elif form == "table":
                 d0 = table_diffusivity(lt["w"], lt["diffusivity"])
                 d_w = lambda w: lscale * d0(w)  # noqa: E731
+            elif form == "conductivity_table":
+                k0 = conductivity_table(lt["w"], lt["log10_k"])
+                k_l = lambda w: lscale * k0(np.asarray(w, dtype=float) / scale)  # noqa: E731
             else:
-                raise StudyError([f"{where}.liquid_transport: unknown form {form!r} (kuenzel, exp_polynomial, table)"])
-        except (KeyError, TypeError, ValueError) as exc:
+                raise StudyError(
+                    [
+                        f"{where}.liquid_transport: unknown form {form!r} "
+                        "(kuenzel, exp_polynomial, table, conductivity_table)"
+                    ]
+                )
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise StudyError([f"{where}.liquid_transport: form {form!r} is incomplete or malformed ({exc})"]) from None
     b = float(keys.get("moisture_conductivity_coefficient", 0.0))
-    return HygricMaterial(
-        name=name,
-        storage=store,
-        lambda_dry=float(conductivity),
-        lambda_w=float(conductivity) * b / float(density),
-        rho_c_dry=float(density) * float(specific_heat),
-        resistance_factor=resistance,
-        liquid_conductivity=k_l,
-        moisture_diffusivity=d_w,
-    )
+    with np.errstate(all="ignore"):  # a form that gives nan or inf is refused by HygricMaterial's checks
+        return HygricMaterial(
+            name=name,
+            storage=store,
+            lambda_dry=float(conductivity),
+            lambda_w=float(conductivity) * b / float(density),
+            rho_c_dry=float(density) * float(specific_heat),
+            resistance_factor=resistance,
+            liquid_conductivity=k_l,
+            moisture_diffusivity=d_w,
+        )

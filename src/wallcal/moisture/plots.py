@@ -25,7 +25,7 @@ def plot_case(run: CaseRun, path) -> str:
         axes[2].plot(x_mm, res.water_content[k], lw=1.2, label=label)
     ref = run.checks[run.checks["x_m"].notna()]
     for q, ax in (("temperature", axes[0]), ("relative_humidity", axes[1]), ("water_content", axes[2])):
-        r = ref[ref["quantity"] == q]
+        r = ref[ref["quantity"].isin([q, f"refinement_{q}"])]  # reference limits, or the refinement band
         if len(r):
             mid = 0.5 * (r["lower"] + r["upper"])
             ax.errorbar(
@@ -36,7 +36,7 @@ def plot_case(run: CaseRun, path) -> str:
                 ecolor="k",
                 capsize=3,
                 lw=0.8,
-                label="reference limits",
+                label="reference limits" if (r["quantity"] == q).any() else "twice-refined run +- tolerance",
             )
     if run.name == "en15026":
         axes[0].set_xlim(0, 5200)
