@@ -439,14 +439,16 @@ def hygric_keys(layer) -> dict | None:
     if layer.thermal_resistance is not None:
         return None
     own = layer.hygric_keys() if hasattr(layer, "hygric_keys") else {}
-    if "moisture_storage" in own:
-        return own
     mat = find(layer.material) if layer.material else None
-    if mat is None or not mat.has_hygric:
+    if "moisture_storage" in own:
+        out = own
+    elif mat is not None and mat.has_hygric:
+        out = mat.layer_keys(layer.thickness, hygric=True)
+        out.update(own)
+    else:
         return None
-    out = mat.layer_keys(layer.thickness, hygric=True)
-    out.update(own)
-    return out
+    # both the storage and mu are needed (an incomplete set counts as none)
+    return out if out.get("vapour_resistance_factor") is not None else None
 
 
 _MATERIALS: dict = {}

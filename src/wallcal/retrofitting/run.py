@@ -501,6 +501,44 @@ class RetrofitResult:
                 out.append(f"{v.spec.name}: {d}")
         return out
 
+    def verdict_table(self) -> pd.DataFrame:
+        """One line per variant: the ISO 13788 (Glaser) result beside the transient run's, and which to trust."""
+        rows = []
+        for v in self.variants:
+            if v.hygro is None:
+                continue
+            h, g = v.hygro, v.glaser
+            rows.append(
+                {
+                    "variant": v.spec.name,
+                    "Glaser (ISO 13788)": g.verdict if g is not None else "not checked",
+                    "transient (EN 15026)": h.verdict,
+                    "critical interface": h.critical_name,
+                    "max RH": round(h.rh_max, 3),
+                    "mould index": round(h.mould_max, 2),
+                    "water trend [kg/(m2 a)]": round(h.trend, 4),
+                    "note": moisture_disagreement(v) or "the two agree",
+                }
+            )
+        return pd.DataFrame(rows).set_index("variant") if rows else pd.DataFrame()
+
+    def report_items(self, d: Path) -> tuple[list, list]:
+        """The moisture tables and figures for the report (``d``: where :meth:`write_into` wrote)."""
+        tables, figures = [], []
+        vt = self.verdict_table()
+        if len(vt):
+            tables.append(("Moisture verdicts: ISO 13788 (Glaser) beside the transient run (EN 15026)", vt, ()))
+        if (Path(d) / "moisture_critical.png").exists():
+            figures.append(
+                (
+                    "RH and mould index at each variant's critical interface over the year",
+                    Path(d) / "moisture_critical.png",
+                )
+            )
+        if (Path(d) / "water_by_year.png").exists():
+            figures.append(("Water per layer by year until periodic", Path(d) / "water_by_year.png"))
+        return tables, figures
+
     # ------------------------------------------------------------------ writing
     def write(self, out_dir) -> Path:
         from ..outputs import output_dir
@@ -671,8 +709,9 @@ def _moisture_setup(study, spec: RetrofitSpec, weather, yb, base: Wall, source: 
     missing = mr.missing_hygric(base)
     if missing:
         return None, {
-            "skipped": f"layer(s) {', '.join(missing)} of {source} have no hygric properties (docs/retrofit.md, "
-            "'Moisture risk'); the moisture columns stay empty"
+            "skipped": f"layer(s) {', '.join(missing)} of {source} have no hygric properties (moisture_storage and "
+            "vapour_resistance_factor, own or from a catalogue material; docs/retrofit.md, 'Moisture risk'); the "
+            "moisture columns stay empty"
         }
     problems = []
     for v, w in zip(spec.variants, vwalls, strict=True):
@@ -681,7 +720,7 @@ def _moisture_setup(study, spec: RetrofitSpec, weather, yb, base: Wall, source: 
             try:
                 mr.layer_material(layer, where(k))
             except StudyError as exc:
-                problems += exc.problems
+                problems += [p for p in exc.problems if p not in problems]
     if problems:
         raise StudyError(problems, source=str(study.path) if study.path else None)
     ext, intr, rain = mr.ham_boundaries(weather, spec, yb, spec.driving_rain_factor)
