@@ -324,3 +324,41 @@ def test_classic_case_vapour_control_layer_is_safe(classic):
 def test_classic_case_calcium_silicate_is_safe(classic):
     tab, _ = classic
     assert tab.loc["calcium silicate 60", "moisture_verdict"] in ("dry", "acceptable")
+
+
+# ============================================================================ intervals over posterior draws
+def test_mould_index_and_trend_intervals_over_draws(tmp_path):
+    """With --from a posterior output the mould index and the trend get p05/p95 over the draws (each draw's wall
+    from its variant's periodic end state); the example's layers carry hygric data."""
+    import json
+
+    from wallcal.calibration import parse_space
+    from wallcal.outputs import format_entries
+
+    h = np.arange(24 * 4)
+    write_epw(tmp_path / "w.epw", 0.0 + 6.0 * np.sin(2 * np.pi * h / 24), rh=np.full(h.size, 85.0))
+    study = load_study(
+        study_with_retrofit(tmp_path, '[retrofit]\nweather = "w.epw"\n[[retrofit.variants]]\nname = "as built"\n')
+    )
+    sp = parse_space(study)
+    d = tmp_path / "post"
+    d.mkdir()
+    chain = np.random.default_rng(3).random((6, 4, sp.n))
+    np.savez_compressed(
+        d / "chain.npz",
+        chain=chain,
+        log_prob=np.zeros(chain.shape[:2]),
+        names=np.array(sp.names),
+        lower=sp.lower,
+        upper=sp.upper,
+    )
+    (d / "posterior.json").write_text(json.dumps({"burn": 2, "thin": 1}))
+    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
+    res = retrofit(study, from_dir=d, samples=6)
+    v = res.variants[0]
+    assert v.sample_moisture.shape == (6, 3)
+    row = res.table().iloc[0]
+    assert row["mould_index_max_p05"] <= row["mould_index_max_p95"]
+    assert row["water_content_trend_p05"] <= row["water_content_trend_p95"]
+    assert np.isfinite([row["mould_index_max_p05"], row["water_content_trend_p95"]]).all()
+    assert np.all(v.sample_moisture[:, 2] >= 1)
