@@ -53,6 +53,9 @@ def make_posterior(study, d: Path, n: int) -> None:
         upper=sp.upper,
     )
     (d / "posterior.json").write_text(json.dumps({"burn": len(chain) // 2, "thin": 1}))
+    from wallcal.outputs import format_entries
+
+    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
 
 
 def thermal_study_file(tmp: Path) -> Path:

@@ -159,7 +159,8 @@ def test_vapour_tight_outside_accumulates_in_a_cold_climate(tmp_path):
 
 def test_columns_are_empty_with_a_note_without_hygric_data(tmp_path):
     write_epw(tmp_path / "w.epw", np.full(48, 5.0))
-    st = _study(tmp_path, '[[retrofit.variants]]\nname = "as built"\n', epw="w.epw")
+    body = '[retrofit]\nweather = "w.epw"\ncondensation_check = false\n[[retrofit.variants]]\nname = "as built"\n'
+    st = load_study(study_with_retrofit(tmp_path, body, wall_mu=False))  # the example's layers without mu
     res = retrofit(st)
     tab = res.table()
     assert list(tab.columns) == list(VARIANT_COLUMNS)
@@ -195,6 +196,12 @@ def test_brick_wall_short_period_outputs(tmp_path):
     water = pd.read_csv(out / "water_1.csv")
     assert list(water.columns) == ["year", "layer brick", "layer plaster", "total"]
     assert any("no precipitation" in n or "driving rain" in n for n in res.notes())
+    # the report's items: the verdict table beside Glaser, the two figures
+    tables, figures = res.report_items(out)
+    vt = tables[0][1]
+    assert list(vt.index) == ["as built", "EPS"] and "Glaser (ISO 13788)" in vt.columns
+    assert [f.name for _, f in figures] == ["moisture_critical.png", "water_by_year.png"]
+    assert all(f.exists() for _, f in figures)
 
 
 # ============================================================================ bad input
