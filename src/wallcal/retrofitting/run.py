@@ -642,24 +642,26 @@ def moisture_frames(v: VariantResult, hour_index=None) -> tuple[pd.DataFrame, pd
 
 
 def moisture_disagreement(v: VariantResult) -> str:
-    """A sentence when ISO 13788 (Glaser) and the transient run disagree, saying which to trust and why."""
+    """A sentence when ISO 13788 (Glaser) and the transient run disagree, saying which to trust and why.
+
+    Glaser passes with ``none`` or ``evaporates``; the transient run with ``dry`` or ``acceptable``."""
     g, h = v.glaser, v.hygro
     if g is None or h is None:
         return ""
-    glaser_bad = g.verdict == "accumulates"
-    glaser_wet = g.verdict != "none"
-    transient_bad = h.verdict in ("mould_risk", "accumulating")
-    if glaser_bad and not transient_bad:
+    glaser_ok = g.verdict in ("none", "evaporates")
+    transient_ok = h.verdict in ("dry", "acceptable")
+    if not glaser_ok and transient_ok:
         return (
             f"Glaser says {g.verdict} but the transient run says {h.verdict}: trust the transient run (EN 15026), "
             "which has the moisture storage, capillary redistribution and hourly weather that the monthly Glaser "
             "method leaves out (ISO 13788 clause 1); Glaser is a conservative screen"
         )
-    if not glaser_wet and transient_bad:
+    if glaser_ok and not transient_ok:
         return (
-            f"Glaser finds no condensation but the transient run says {h.verdict}: trust the transient run, which "
-            "adds what Glaser cannot see (driving rain, built-in moisture, RH above the mould limit without "
-            "condensation, hourly peaks)"
+            f"Glaser says {g.verdict} but the transient run says {h.verdict} at {h.critical_name}: trust the "
+            "transient run, which sees what Glaser cannot (mould growth at high RH without net condensation, "
+            "driving rain, built-in moisture, summer condensation from solar-driven inward vapour, hourly peaks); "
+            "Glaser only weighs the heating season's diffusion condensate"
         )
     return ""
 
