@@ -96,6 +96,7 @@ def bench_moisture(study, post: Path, samples: int, workers: int) -> None:
     point_years = sum(y for y, _ in runs)
     point_s = sum(s for _, s in runs)
     draw_years = int(sum(v.sample_moisture[:, 2].sum() for v in res.variants))
+    draw_cpu = float(sum(v.sample_moisture[:, 3].sum() for v in res.variants))
     n_draws = sum(len(v.sample_moisture) for v in res.variants)
     print(
         f"moisture: {len(res.variants)} variants x {samples} draws on {workers} worker process(es): "
@@ -104,7 +105,9 @@ def bench_moisture(study, post: Path, samples: int, workers: int) -> None:
     print(
         f"  point walls: {point_years} wall-years in {point_s:.1f} s ({point_s / max(point_years, 1):.2f} s per "
         f"wall-year, one process); draws: {n_draws} runs, {draw_years} wall-years "
-        f"({draw_years / max(n_draws, 1):.2f} years per draw)"
+        f"({draw_years / max(n_draws, 1):.2f} years per draw), {draw_cpu:.1f} CPU s in the workers = "
+        f"{draw_cpu / max(draw_years, 1):.2f} CPU s per wall-year; at that cost the draws need at least "
+        f"{draw_cpu / workers:.0f} s on {workers} worker(s)"
     )
     print(
         res.table()[

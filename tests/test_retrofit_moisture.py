@@ -363,7 +363,7 @@ def test_mould_index_and_trend_intervals_over_draws(tmp_path):
     (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
     res = retrofit(study, from_dir=d, samples=6)
     v = res.variants[0]
-    assert v.sample_moisture.shape == (6, 3)
+    assert v.sample_moisture.shape == (6, 4)
     row = res.table().iloc[0]
     assert row["mould_index_max_p05"] <= row["mould_index_max_p95"]
     assert row["water_content_trend_p05"] <= row["water_content_trend_p95"]

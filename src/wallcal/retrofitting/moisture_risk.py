@@ -571,20 +571,23 @@ def run_wall(
     )
 
 
-def draw_task(task) -> tuple[float, float, int]:
-    """A posterior draw's run (top level, for :class:`wallcal.cluster.Executor`): ``(wall, settings, initial)``
-    -> (mould index at the critical interface, water trend [kg/(m2 year)], years)."""
+def draw_task(task) -> tuple[float, float, int, float]:
+    """A posterior draw's run (top level, for :class:`wallcal.cluster.Executor`): ``(wall, settings, initial,
+    base_ids)`` -> (mould index at the critical interface, water trend [kg/(m2 year)], years, CPU seconds)."""
+    import time
+
     wall, settings, initial, base_ids = task
+    cpu = time.process_time()
     r = run_wall(wall, settings, lambda k: f"layer {k}", initial=initial, base_ids=base_ids)
-    return r.mould_max, r.trend, r.years
+    return r.mould_max, r.trend, r.years, time.process_time() - cpu
 
 
 def run_draws(walls, settings: RunSettings, initial, base_ids: frozenset = frozenset()) -> np.ndarray:
-    """Every draw's (mould index, trend, years), on the active :class:`wallcal.cluster.Executor` when there is one,
-    else one after the other here. ``initial``: the point wall's end state (the draws start from it)."""
+    """Every draw's (mould index, trend, years, CPU seconds), on the active :class:`wallcal.cluster.Executor` when
+    there is one, else one after the other here. ``initial``: the point wall's end state (the draws start from it)."""
     from ..cluster import current_executor
 
     tasks = [(w, settings, initial, base_ids) for w in walls]
     ex = current_executor()
     out = ex.map(draw_task, tasks) if ex is not None and len(tasks) > 1 else [draw_task(t) for t in tasks]
-    return np.array(out, dtype=float).reshape(len(tasks), 3)
+    return np.array(out, dtype=float).reshape(len(tasks), 4)

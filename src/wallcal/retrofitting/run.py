@@ -314,7 +314,7 @@ class VariantResult:
     glaser: object = None
     sample_losses: np.ndarray | None = None
     hygro: object = None  # moisture_risk.HygroResult
-    sample_moisture: np.ndarray | None = None  # (draws, 3): mould index, trend, years
+    sample_moisture: np.ndarray | None = None  # (draws, 4): mould index, trend, years, CPU seconds
 
     def moisture_quantile(self, column: int, q: float) -> float:
         """A quantile of the draws' mould index (column 0) or water trend (column 1); NaN without draws."""
