@@ -234,6 +234,9 @@ def test_weather_file_without_relative_humidity(tmp_path, capsys):
 
 
 # ============================================================================ the classic case
+#: the classic case's variants the suite runs; the vapour control layer and calcium silicate variants (about 100 s of
+#: solver time for the first) are run by bench/retrofit_classic.py, and their verdicts are not yet the expected
+#: ones (docs/retrofit.md, "The classic case")
 CLASSIC_VARIANTS = """
 [[retrofit.variants]]
 name = "as built"
@@ -242,16 +245,6 @@ name = "as built"
 name = "wool 80 + board"
 add_interior = [{ material = "mineral wool", thickness = 0.08 },
                 { material = "gypsum plasterboard", thickness = 0.0125 }]
-
-[[retrofit.variants]]
-name = "wool 80 + VCL + board"
-add_interior = [{ material = "mineral wool", thickness = 0.08 },
-                { material = "vapour control layer", thickness = 0.0002 },
-                { material = "gypsum plasterboard", thickness = 0.0125 }]
-
-[[retrofit.variants]]
-name = "calcium silicate 60"
-add_interior = [{ material = "calcium silicate board", thickness = 0.06 }]
 
 [[retrofit.variants]]
 name = "EPS 100 outside"
@@ -307,29 +300,6 @@ def test_classic_case_exterior_eps_is_dry(classic):
     row = tab.loc["EPS 100 outside"]
     assert row["moisture_verdict"] == "dry"
     assert float(row["max_relative_humidity_critical"]) < 0.8 and float(row["mould_index_max"]) == 0.0
-
-
-@pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 38 expects dry/acceptable; with the example's interior (20 degC, RH 0.5 all year: an "
-    "air-conditioned summer) the transient run finds summer condensation on the film's outer face and RH above "
-    "0.9 on the old plaster (docs/retrofit.md, 'The classic case')",
-)
-def test_classic_case_vapour_control_layer_is_safe(classic):
-    tab, _ = classic
-    assert tab.loc["wool 80 + VCL + board", "moisture_verdict"] in ("dry", "acceptable")
-
-
-@pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 38 expects dry/acceptable; the old plaster's covered room-side face counts as 'sensitive' and "
-    "sees RH 0.93 for weeks behind the board (docs/retrofit.md, 'The classic case')",
-)
-def test_classic_case_calcium_silicate_is_safe(classic):
-    tab, _ = classic
-    assert tab.loc["calcium silicate 60", "moisture_verdict"] in ("dry", "acceptable")
 
 
 # ============================================================================ intervals over posterior draws
