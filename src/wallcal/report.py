@@ -224,6 +224,12 @@ def _summary(study, outputs) -> str:
                     )
                     + ", "
                     f"condensation {row['condensation_verdict'] or 'not checked'}"
+                    + (
+                        f", moisture {row['moisture_verdict']} (mould index {row['mould_index_max']:.2f} at "
+                        f"{row['critical_interface']})"
+                        if row.get("moisture_verdict", "")
+                        else ""
+                    )
                     for name, row in vt.iterrows()
                 )
                 + "."

@@ -411,6 +411,9 @@ def _stage_retrofit(ctx: RunContext, d: Path, so: StageOutput):
     if (d / "glaser_worst_month.png").exists():
         so.figures.append(("ISO 13788: Glaser diagram of each variant's worst month", d / "glaser_worst_month.png"))
         so.figures.append(("ISO 13788: accumulated condensate month by month", d / "accumulation.png"))
+    tables, figures = res.report_items(d)  # the moisture run (EN 15026) and the mould index
+    so.tables += tables
+    so.figures += figures
     ctx.results["retrofit"] = res
 
 

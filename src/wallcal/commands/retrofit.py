@@ -68,6 +68,11 @@ def run(args) -> int:
         )
     )
     print()
+    if (tab["moisture_verdict"] != "").any():  # the hygrothermal run (EN 15026) and the mould index
+        cols = ["moisture_years", "water_content_trend_kg_m2_per_year", "max_relative_humidity_critical"]
+        cols += ["critical_interface", "mould_index_max", "moisture_verdict"]
+        print(table(tab[cols], "Moisture (EN 15026 year runs): water trend (kg/m2 a year), critical interface"))
+        print()
     for note in res.notes():
         print(f"- {note}")
     print(f"\nwrote {out}/variants.csv and the per-variant series and figures")

@@ -36,6 +36,12 @@ RETROFIT_KEYS = (
     "ground_albedo",
     "time_step",
     "condensation_check",
+    # the hygrothermal run (EN 15026) and the mould index (docs/retrofit.md, "Moisture risk")
+    "moisture_check",
+    "driving_rain_factor",
+    "mould_sensitivity",
+    "mould_decline_coefficient",
+    "moisture_max_years",
 )
 VARIANT_KEYS = ("name", "add_exterior", "add_interior", "remove", "replace")
 
@@ -94,6 +100,16 @@ class RetrofitSpec:
         Engine time step [s], at most 3600 and a divisor of it.
     condensation_check : bool
         Run ISO 13788 (needs mu on every layer).
+    moisture_check : bool
+        Run the hygrothermal year (EN 15026) and the mould index when the wall's layers have hygric data.
+    driving_rain_factor : float
+        R_1 of the driving rain (EN ISO 15927-3's C_R C_T O W) [-].
+    mould_sensitivity : tuple of (str, str)
+        Layer id or material name -> mould sensitivity class (Ojanen et al. 2010), overriding the defaults.
+    mould_decline_coefficient : float
+        Ojanen's relative decline coefficient C_mat [-].
+    moisture_max_years : int
+        Most years of the periodic hygrothermal run.
     """
 
     weather: str
@@ -112,6 +128,11 @@ class RetrofitSpec:
     ground_albedo: float = 0.2
     time_step: float = 3600.0
     condensation_check: bool = True
+    moisture_check: bool = True
+    driving_rain_factor: float = 0.4
+    mould_sensitivity: tuple[tuple[str, str], ...] = ()
+    mould_decline_coefficient: float = 0.25
+    moisture_max_years: int = 10
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
     def replace(self, **changes) -> RetrofitSpec:
@@ -208,7 +229,14 @@ def parse_retrofit(raw: Any, problems: Problems, base_dir: Path | None, wall: Wa
         "ground_albedo": t.num("ground_albedo", 0.2, ge=0.0, le=1.0),
         "time_step": t.num("time_step", 3600.0, gt=0.0, le=3600.0),
         "condensation_check": t.bool("condensation_check", True),
+        "moisture_check": t.bool("moisture_check", True),
+        "driving_rain_factor": t.num("driving_rain_factor", 0.4, ge=0.0, le=10.0),
+        "mould_decline_coefficient": t.num("mould_decline_coefficient", 0.25, ge=0.0, le=1.0),
+        "moisture_max_years": t.num("moisture_max_years", 10, integer=True, ge=2, le=100),
     }
+    if kw["moisture_max_years"] is not None:
+        kw["moisture_max_years"] = int(kw["moisture_max_years"])
+    kw["mould_sensitivity"] = _mould_sensitivity(t, problems)
     if kw["time_step"] is not None and abs(3600.0 / kw["time_step"] - round(3600.0 / kw["time_step"])) > 1e-9:
         problems.add("retrofit.time_step", f"must divide one hour (3600, 1800, 900, ... s), got {kw['time_step']:g}")
     rh = t.num("interior_relative_humidity", None, gt=0.0, le=1.0)
@@ -283,6 +311,28 @@ def parse_retrofit(raw: Any, problems: Problems, base_dir: Path | None, wall: Wa
     if weather is None or any(v is None for k, v in kw.items() if k not in optional and not isinstance(v, bool)):
         return None
     return RetrofitSpec(weather=weather, weather_path=wpath, variants=tuple(variants), raw=dict(raw), **kw)
+
+
+def _mould_sensitivity(t: Table, problems: Problems) -> tuple[tuple[str, str], ...]:
+    """``mould_sensitivity = { "<layer id or material>" = "<class>" }``: each class checked by name."""
+    from ..moisture.mould import mould_class
+
+    if not t.has("mould_sensitivity"):
+        return ()
+    raw = t.raw("mould_sensitivity")
+    if not isinstance(raw, dict):
+        problems.add(
+            t.at("mould_sensitivity"),
+            f'must be a table {{ "layer id or material" = "sensitive", ... }}, got {describe(raw)}',
+        )
+        return ()
+    out = []
+    for key, cls in raw.items():
+        try:
+            out.append((str(key), mould_class(cls, f"{t.at('mould_sensitivity')}.{key}").name))
+        except StudyError as exc:
+            problems.append(exc.problems[0])
+    return tuple(out)
 
 
 # ============================================================================ applying a variant

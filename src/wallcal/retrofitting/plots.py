@@ -100,6 +100,62 @@ def plot_accumulation(res, path: Path) -> None:
     plt.close(fig)
 
 
+def _grid(n: int, w: float = 4.2, h: float = 2.8):
+    plt = _plt()
+    ncol = min(2, n)
+    nrow = -(-n // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(w * ncol, h * nrow), squeeze=False)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    return plt, fig, axes
+
+
+def plot_moisture_critical(res, path: Path) -> None:
+    """Hourly RH and mould index at each variant's critical interface over the last (periodic) year."""
+    from .moisture_risk import DRY_RH, MOULD_LIMIT
+
+    vs = [v for v in res.variants if v.hygro is not None and v.hygro.critical is not None]
+    plt, fig, axes = _grid(len(vs))
+    for ax, v in zip(axes.flat, vs, strict=False):
+        h = v.hygro
+        k = h.critical
+        days = np.arange(h.rh.shape[1]) / 24.0
+        ax.plot(days, 100 * h.rh[k], color="#3b6fb6", lw=0.6, label="RH [%]")
+        ax.axhline(100 * DRY_RH, color="#3b6fb6", ls=":", lw=0.8)
+        ax.set_ylim(0, 105)
+        ax.set_ylabel("RH [%]", fontsize=8, color="#3b6fb6")
+        ax2 = ax.twinx()
+        ax2.plot(days[1:], h.mould[k], color="#c0392b", lw=1.2, label="mould index")
+        ax2.axhline(MOULD_LIMIT, color="#c0392b", ls=":", lw=0.8)
+        ax2.set_ylim(0, max(2.0, 1.1 * float(h.mould[k].max())))
+        ax2.set_ylabel("mould index M", fontsize=8, color="#c0392b")
+        ax.set_xlabel("day of the periodic year", fontsize=8)
+        ax.set_title(f"{v.spec.name}: {h.critical_name} ({h.verdict})", fontsize=9)
+    fig.suptitle("Critical interface: hourly RH (blue, dotted 80 %) and mould index (red, dotted M = 1)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_water_by_year(res, path: Path) -> None:
+    """Water per layer [kg/m2] at the start of each year until the run is periodic, each variant."""
+    vs = [v for v in res.variants if v.hygro is not None]
+    plt, fig, axes = _grid(len(vs), h=2.6)
+    for ax, v in zip(axes.flat, vs, strict=False):
+        h = v.hygro
+        years = np.arange(h.layer_water.shape[0])
+        for j, lid in enumerate(h.layer_ids):
+            ax.plot(years, h.layer_water[:, j], marker="o", ms=3, label=lid)
+        ax.set_xlabel("year (0 = start)", fontsize=8)
+        ax.set_ylabel("water [kg/m2]", fontsize=8)
+        ax.set_xticks(years)
+        ax.set_title(f"{v.spec.name}: {h.years} years" + ("" if h.periodic else " (not periodic)"), fontsize=9)
+        ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def write_figures(res, d: Path) -> list[str]:
     files = ["annual_loss.png"]
     plot_annual_loss(res, d / "annual_loss.png")
@@ -107,4 +163,10 @@ def write_figures(res, d: Path) -> list[str]:
         plot_glaser(res, d / "glaser_worst_month.png")
         plot_accumulation(res, d / "accumulation.png")
         files += ["glaser_worst_month.png", "accumulation.png"]
+    if any(v.hygro is not None and v.hygro.critical is not None for v in res.variants):
+        plot_moisture_critical(res, d / "moisture_critical.png")
+        files.append("moisture_critical.png")
+    if any(v.hygro is not None for v in res.variants):
+        plot_water_by_year(res, d / "water_by_year.png")
+        files.append("water_by_year.png")
     return files

@@ -70,6 +70,17 @@ VARIANT_COLUMNS = (
     "frsi",
     "condensation_max_kg_m2",
     "condensation_verdict",
+    # the hygrothermal year (EN 15026) and the mould index (moisture_risk.py); empty without hygric data
+    "moisture_years",
+    "water_content_trend_kg_m2_per_year",
+    "water_content_trend_p05",
+    "water_content_trend_p95",
+    "max_relative_humidity_critical",
+    "critical_interface",
+    "mould_index_max",
+    "mould_index_max_p05",
+    "mould_index_max_p95",
+    "moisture_verdict",
 )
 
 
@@ -302,6 +313,14 @@ class VariantResult:
     hourly: pd.DataFrame
     glaser: object = None
     sample_losses: np.ndarray | None = None
+    hygro: object = None  # moisture_risk.HygroResult
+    sample_moisture: np.ndarray | None = None  # (draws, 4): mould index, trend, years, CPU seconds
+
+    def moisture_quantile(self, column: int, q: float) -> float:
+        """A quantile of the draws' mould index (column 0) or water trend (column 1); NaN without draws."""
+        if self.sample_moisture is None or not len(self.sample_moisture):
+            return math.nan
+        return float(np.nanpercentile(self.sample_moisture[:, column], q))
 
     @property
     def p05(self) -> float:
@@ -344,9 +363,39 @@ class RetrofitResult:
                     "frsi": g.frsi if g is not None else _frsi(v.wall, self.spec),
                     "condensation_max_kg_m2": g.max_accumulated if g is not None else math.nan,
                     "condensation_verdict": g.verdict if g is not None else "",
+                    **self._moisture_row(v),
                 }
             )
         return pd.DataFrame(rows, columns=list(VARIANT_COLUMNS))
+
+    @staticmethod
+    def _moisture_row(v: VariantResult) -> dict:
+        h = v.hygro
+        if h is None:
+            return {
+                "moisture_years": math.nan,
+                "water_content_trend_kg_m2_per_year": math.nan,
+                "water_content_trend_p05": math.nan,
+                "water_content_trend_p95": math.nan,
+                "max_relative_humidity_critical": math.nan,
+                "critical_interface": "",
+                "mould_index_max": math.nan,
+                "mould_index_max_p05": math.nan,
+                "mould_index_max_p95": math.nan,
+                "moisture_verdict": "",
+            }
+        return {
+            "moisture_years": h.years,
+            "water_content_trend_kg_m2_per_year": h.trend,
+            "water_content_trend_p05": v.moisture_quantile(1, 5),
+            "water_content_trend_p95": v.moisture_quantile(1, 95),
+            "max_relative_humidity_critical": h.rh_max,
+            "critical_interface": h.critical_name,
+            "mould_index_max": h.mould_max,
+            "mould_index_max_p05": v.moisture_quantile(0, 5),
+            "mould_index_max_p95": v.moisture_quantile(0, 95),
+            "moisture_verdict": h.verdict,
+        }
 
     def spread(self) -> pd.DataFrame:
         """Spearman rank correlation of each sampled property with each variant's annual loss, plus the
@@ -390,6 +439,7 @@ class RetrofitResult:
             f"{s.time_step:g} s; annual loss = net heat leaving the room through the wall (hours of gain count "
             "negative).",
         ]
+        out += self.moisture_notes()
         for v in self.variants:
             g = v.glaser
             if g is not None and not g.mould_ok:
@@ -421,6 +471,73 @@ class RetrofitResult:
                 "the more of the total resistance they carry, the narrower the interval."
             )
         return out
+
+    def moisture_notes(self) -> list[str]:
+        """The hygrothermal run's sentences: what ran (or why not), the rain, where Glaser and it disagree."""
+        from . import moisture_risk as mr
+
+        info = self.info.get("moisture", {})
+        if info.get("skipped"):
+            return [f"moisture run (EN 15026): not run: {info['skipped']}"]
+        if not any(v.hygro is not None for v in self.variants):
+            return []
+        ran = [v for v in self.variants if v.hygro is not None]
+        out = [
+            f"moisture run (EN 15026): each variant year after year from RH {mr.INITIAL_RH:g} until every layer's "
+            f"water changes by less than max({mr.PERIODIC_RELATIVE:.0%}, {mr.PERIODIC_ABSOLUTE:g} kg/m2) per year "
+            f"(at most {self.spec.moisture_max_years} years): "
+            + ", ".join(
+                f"{v.spec.name!r} {v.hygro.years}" + ("" if v.hygro.periodic else " (not periodic)") for v in ran
+            )
+            + f" years; mould index (VTT, C_mat {self.spec.mould_decline_coefficient:g}) at every layer interface; "
+            f"verdicts: mould index >= {mr.MOULD_LIMIT:g} mould_risk, RH >= {mr.DRY_RH:g} acceptable, below dry, "
+            "not periodic with rising water accumulating.",
+        ]
+        if info.get("rain"):
+            out.append(info["rain"] + ".")
+        for v in ran:
+            d = moisture_disagreement(v)
+            if d:
+                out.append(f"{v.spec.name}: {d}")
+        return out
+
+    def verdict_table(self) -> pd.DataFrame:
+        """One line per variant: the ISO 13788 (Glaser) result beside the transient run's, and which to trust."""
+        rows = []
+        for v in self.variants:
+            if v.hygro is None:
+                continue
+            h, g = v.hygro, v.glaser
+            rows.append(
+                {
+                    "variant": v.spec.name,
+                    "Glaser (ISO 13788)": g.verdict if g is not None else "not checked",
+                    "transient (EN 15026)": h.verdict,
+                    "critical interface": h.critical_name,
+                    "max RH": round(h.rh_max, 3),
+                    "mould index": round(h.mould_max, 2),
+                    "water trend [kg/(m2 a)]": round(h.trend, 4),
+                    "note": moisture_disagreement(v) or "the two agree",
+                }
+            )
+        return pd.DataFrame(rows).set_index("variant") if rows else pd.DataFrame()
+
+    def report_items(self, d: Path) -> tuple[list, list]:
+        """The moisture tables and figures for the report (``d``: where :meth:`write_into` wrote)."""
+        tables, figures = [], []
+        vt = self.verdict_table()
+        if len(vt):
+            tables.append(("Moisture verdicts: ISO 13788 (Glaser) beside the transient run (EN 15026)", vt, ()))
+        if (Path(d) / "moisture_critical.png").exists():
+            figures.append(
+                (
+                    "RH and mould index at each variant's critical interface over the year",
+                    Path(d) / "moisture_critical.png",
+                )
+            )
+        if (Path(d) / "water_by_year.png").exists():
+            figures.append(("Water per layer by year until periodic", Path(d) / "water_by_year.png"))
+        return tables, figures
 
     # ------------------------------------------------------------------ writing
     def write(self, out_dir) -> Path:
@@ -455,6 +572,11 @@ class RetrofitResult:
             if v.glaser is not None:
                 v.glaser.table.to_csv(d / f"glaser_{k}.csv", float_format="%.6g")
                 files.append(f"glaser_{k}.csv")
+            if v.hygro is not None:
+                hourly_m, water = moisture_frames(v, hour_index=v.hourly.index)
+                hourly_m.to_csv(d / f"moisture_{k}.csv", float_format="%.5g")
+                water.to_csv(d / f"water_{k}.csv", float_format="%.6g")
+                files += [f"moisture_{k}.csv", f"water_{k}.csv"]
         if self.samples is not None:
             self.spread().to_csv(d / "spread.csv", float_format="%.4f")
             files.append("spread.csv")
@@ -470,6 +592,18 @@ class RetrofitResult:
                     "passes": v.passes,
                     "periodic_residual_K": v.residual,
                     "layers": [layer.id for layer in v.wall.layers],
+                    **(
+                        {
+                            "moisture_years": v.hygro.years,
+                            "moisture_periodic": v.hygro.periodic,
+                            "mould_years": v.hygro.mould_years,
+                            "moisture_seconds": v.hygro.seconds,
+                            "moisture_cells": v.hygro.stats.get("cells"),
+                            "runoff_kg_m2": v.hygro.runoff_kg_m2,
+                        }
+                        if v.hygro is not None
+                        else {}
+                    ),
                 }
                 for k, v in enumerate(self.variants, 1)
             ],
@@ -485,6 +619,53 @@ class RetrofitResult:
         return files
 
 
+def moisture_frames(v: VariantResult, hour_index=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A variant's moisture outputs: the last year's hourly RH, temperature and mould index at each interface
+    (``rh <a|b>``, ``T <a|b>``, ``M <a|b>``; M after each hour, 0 at the first mark) and the water per layer at
+    the start of each year [kg/m2]."""
+    h = v.hygro
+    cols = {}
+    for k, itf in enumerate(h.interfaces):
+        cols[f"rh {itf.name}"] = h.rh[k]
+        cols[f"T {itf.name}"] = h.temperature[k]
+        cols[f"M {itf.name}"] = np.concatenate([[h.mould[k][-1]], h.mould[k]])
+    hourly = pd.DataFrame(cols, index=hour_index)
+    if hour_index is not None:
+        hourly.index = (
+            pd.Index(hour_index).strftime("%Y-%m-%dT%H:%M") if hasattr(hour_index, "strftime") else hour_index
+        )
+        hourly.index.name = "time"
+    water = pd.DataFrame(h.layer_water, columns=[f"layer {i}" for i in h.layer_ids])
+    water.insert(0, "year", np.arange(len(water)))
+    water["total"] = h.layer_water.sum(axis=1)
+    return hourly, water.set_index("year")
+
+
+def moisture_disagreement(v: VariantResult) -> str:
+    """A sentence when ISO 13788 (Glaser) and the transient run disagree, saying which to trust and why.
+
+    Glaser passes with ``none`` or ``evaporates``; the transient run with ``dry`` or ``acceptable``."""
+    g, h = v.glaser, v.hygro
+    if g is None or h is None:
+        return ""
+    glaser_ok = g.verdict in ("none", "evaporates")
+    transient_ok = h.verdict in ("dry", "acceptable")
+    if not glaser_ok and transient_ok:
+        return (
+            f"Glaser says {g.verdict} but the transient run says {h.verdict}: trust the transient run (EN 15026), "
+            "which has the moisture storage, capillary redistribution and hourly weather that the monthly Glaser "
+            "method leaves out (ISO 13788 clause 1); Glaser is a conservative screen"
+        )
+    if glaser_ok and not transient_ok:
+        return (
+            f"Glaser says {g.verdict} but the transient run says {h.verdict} at {h.critical_name}: trust the "
+            "transient run, which sees what Glaser cannot (mould growth at high RH without net condensation, "
+            "driving rain, built-in moisture, summer condensation from solar-driven inward vapour, hourly peaks); "
+            "Glaser only weighs the heating season's diffusion condensate"
+        )
+    return ""
+
+
 def _spearman(x: np.ndarray, y: np.ndarray) -> float:
     """Spearman rank correlation (average ranks for ties); NaN when either is constant."""
     if np.ptp(x) == 0 or np.ptp(y) == 0:
@@ -498,6 +679,62 @@ def _frsi(wall: Wall, spec: RetrofitSpec) -> float:
     from .glaser import temperature_factor
 
     return temperature_factor(wall, rse=1.0 / spec.exterior_surface_coefficient)
+
+
+# ============================================================================ the moisture run's set-up
+def _layer_path(v: VariantSpec, wall: Wall):
+    """``k -> key path`` of layer k of a variant's wall (the variant's added or replaced layer, else the wall's)."""
+    added = {id(layer): f"{v.path}.add_exterior[{i}]" for i, layer in enumerate(v.add_exterior)}
+    added.update({id(layer): f"{v.path}.add_interior[{i}]" for i, layer in enumerate(v.add_interior)})
+    replaced = {lid for lid, _ in v.replace}
+
+    def where(k: int) -> str:
+        layer = wall.layers[k]
+        if id(layer) in added:
+            return added[id(layer)]
+        if layer.id in replaced:
+            return f"{v.path}.replace.{layer.id}"
+        return f"wall layer {layer.id!r}"
+
+    return where
+
+
+def _moisture_setup(study, spec: RetrofitSpec, weather, yb, base: Wall, source: str, vwalls: list[Wall]):
+    """The hygrothermal run's settings (None when it does not run) and what to say about it.
+
+    It runs when ``moisture_check`` is on and every layer of the base wall has hygric properties; then every
+    layer a variant adds or changes must have them too (StudyError naming its key path, before any run)."""
+    from . import moisture_risk as mr
+
+    if not spec.moisture_check:
+        return None, {"skipped": "retrofit.moisture_check = false"}
+    missing = mr.missing_hygric(base)
+    if missing:
+        return None, {
+            "skipped": f"layer(s) {', '.join(missing)} of {source} have no hygric properties (moisture_storage and "
+            "vapour_resistance_factor, own or from a catalogue material; docs/retrofit.md, 'Moisture risk'); the "
+            "moisture columns stay empty"
+        }
+    problems = []
+    for v, w in zip(spec.variants, vwalls, strict=True):
+        where = _layer_path(v, w)
+        for k, layer in enumerate(w.layers):
+            try:
+                mr.layer_material(layer, where(k))
+            except StudyError as exc:
+                problems += [p for p in exc.problems if p not in problems]
+    if problems:
+        raise StudyError(problems, source=str(study.path) if study.path else None)
+    ext, intr, rain = mr.ham_boundaries(weather, spec, yb, spec.driving_rain_factor)
+    settings = mr.RunSettings(
+        exterior=ext,
+        interior=intr,
+        hours=weather.hours,
+        max_years=spec.moisture_max_years,
+        decline=spec.mould_decline_coefficient,
+        overrides=spec.mould_sensitivity,
+    )
+    return settings, {"rain": rain.note(), "driving_rain_mm": rain.driving_rain_mm}
 
 
 # ============================================================================ the entry point
@@ -582,6 +819,7 @@ def retrofit(
                 ) from None
     else:
         glasers = [None] * len(vwalls)
+    settings, moisture_info = _moisture_setup(study, spec, weather, yb, base, source, vwalls)
     results = []
     times = weather.data.index.tz_localize(None)
     hour_index = times.append(pd.DatetimeIndex([times[-1] + pd.Timedelta(hours=1)]))
@@ -593,6 +831,15 @@ def retrofit(
         if smp is not None:  # every posterior draw with the variant's changes, in one batch on the point's grid
             yr = periodic_year([w] + [apply_variant(sw, v) for sw in smp.walls], yb, all_rows=False)
             sample_losses = yr.annual_loss_kWh_m2[1:]
+        hygro = sample_moisture = None
+        if settings is not None:
+            from . import moisture_risk as mr
+
+            base_ids = frozenset(layer.id for layer in base.layers)
+            hygro = mr.run_wall(w, settings, _layer_path(v, w), base_ids=base_ids)
+            if smp is not None:  # each draw from the point wall's periodic end state
+                draws = [apply_variant(sw, v) for sw in smp.walls]
+                sample_moisture = mr.run_draws(draws, settings, hygro.final_state, base_ids)
         u = iso6946.thermal_resistance(
             w, rsi=1.0 / spec.interior_surface_coefficient, rse=1.0 / spec.exterior_surface_coefficient
         ).u_value
@@ -622,6 +869,8 @@ def retrofit(
                 hourly=hourly,
                 glaser=g,
                 sample_losses=sample_losses,
+                hygro=hygro,
+                sample_moisture=sample_moisture,
             )
         )
         if progress:
@@ -634,7 +883,7 @@ def retrofit(
         variants=results,
         samples=smp,
         seconds=time.perf_counter() - t_start,
-        info={"engine_path": point.path, "nodes_first_variant": point.nodes},
+        info={"engine_path": point.path, "nodes_first_variant": point.nodes, "moisture": moisture_info},
     )
     if out is not None:
         res.write(out)
