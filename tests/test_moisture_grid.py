@@ -1,5 +1,6 @@
-"""The ham engine's grid (:data:`wallcal.engines.ham.GRID`): close to a fine grid where it matters (the rain
-taken up through a face cell), with fewer cells than the previous grid (bench/ham.py --grid-study)."""
+"""The ham engine's grid (:data:`wallcal.engines.ham.GRID`): the rain taken up through a face cell as on a
+grid with the same 0.1 mm face cells and ten times finer inside, with fewer cells than the previous grid
+(bench/ham.py --grid-study; docs/moisture.md, Speed)."""
 
 from __future__ import annotations
 
