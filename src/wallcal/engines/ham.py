@@ -3,8 +3,8 @@
 It maps a :class:`~wallcal.engines.base.SimulationInput` onto :func:`wallcal.moisture.solver.solve`:
 
 - each layer's :class:`~wallcal.moisture.materials.HygricMaterial` from its thermal and hygric keys
-  (:meth:`wallcal.wall.Layer.hygric_material`); cells of 0.5 mm at every face and interface growing by
-  20 % to at most 5 mm (:data:`GRID`); the solver's adaptive step, at most the input's time step;
+  (:meth:`wallcal.wall.Layer.hygric_material`); cells of 0.1 mm at every face and interface doubling
+  to at most 40 mm (:data:`GRID`; bench/ham.py --grid-study); the solver's adaptive step, at most the input's time step;
 - boundaries on the input's time grid: ``surface_temperature_humidity`` -> a surface face (T and RH imposed),
   ``air_temperature_humidity`` -> an air face (``h`` the surface coefficient, ``beta`` the vapour
   coefficient), ``surface_temperature`` / ``air_temperature`` -> the same, sealed to vapour (RH 0.5 on a
@@ -35,7 +35,7 @@ from ..wall import Wall
 from .base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch, stack_outputs
 
 #: cells at every face and interface [m], growth, widest cell [m]
-GRID = (5e-4, 1.2, 5e-3)
+GRID = (1e-4, 2.0, 0.04)
 #: most layers' tabulated materials kept by one prepared input (about 100 kB each)
 MATERIAL_CACHE = 64
 #: most passes of a periodic run
