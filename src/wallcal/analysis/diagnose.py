@@ -61,13 +61,18 @@ from .diagnose_adoption import (  # noqa: F401
     held_at_bounds,
 )
 from .diagnose_candidates import (  # noqa: F401
+    COEFFICIENT_PLAUSIBLE,
     COEFFICIENT_RANGE,
     CONTACT_BOUNDS,
+    CONTACT_PLAUSIBLE,
     DEPTH_RANGE,
     INSULATION_LAMBDA,
     OFFSET_ACCURACIES,
+    OFFSET_PLAUSIBLE_ACCURACIES,
     OFFSET_SPREAD,
+    PROBE_TOLERANCE,
     Extension,
+    plausibility,
     propose,
     residual_analysis,
     unit_label,
@@ -139,6 +144,7 @@ class Diagnosis:
     seconds: float = 0.0
     raw: dict = field(default_factory=dict, repr=False)
     notes: list = field(default_factory=list)
+    validation: pd.DataFrame | None = None  # validation.csv: the adopted structure on the held-out window
 
     # ------------------------------------------------------------------ words
     def summary(self) -> str:
@@ -222,7 +228,9 @@ class Diagnosis:
         self.residuals.to_csv(d / "residuals.csv", float_format="%.6g")
         (d / "diagnose.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
         load_study(d / "study.toml")  # the written study must load (relative paths resolve)
-        return ["candidates.csv", "study.toml", "residuals.csv", "diagnose.json"]
+        from ..validation import write as write_validation
+
+        return ["candidates.csv", "study.toml", "residuals.csv", "diagnose.json"] + write_validation(self.validation, d)
 
     def write(self, out_dir) -> Path:
         """Write every output atomically into ``out_dir`` (it appears only when complete)."""
@@ -430,7 +438,7 @@ def diagnose(
         Most extensions adopted together.
     kinds : tuple of str, optional
         Candidate kinds to consider (default all: depth, contact_resistance,
-        conductivity_temperature_coefficient, offset).
+        conductivity_temperature_coefficient, offset, face_offset).
 
     Returns
     -------
@@ -449,7 +457,7 @@ def diagnose(
 
     t0 = time.perf_counter()
     space = space_of(study)
-    all_kinds = ("depth", "contact_resistance", "conductivity_temperature_coefficient", "offset")
+    all_kinds = ("depth", "contact_resistance", "conductivity_temperature_coefficient", "offset", "face_offset")
     if kinds is not None:
         bad = [k for k in kinds if k not in all_kinds]
         if bad:
@@ -581,20 +589,74 @@ def diagnose(
         """The study's own parameters at a bound of their prior box at the fit's optimum."""
         return held_at_bounds(f.space, f.x, own)
 
+    # held-out validation ([period] validation_start/end): every fit is scored on the window no fit sees
+    from ..validation import Validator, prepare_window
+
+    vprep = prepare_window(study)
+    validators: dict[tuple, Validator] = {}
+    vcache: dict[int, np.ndarray] = {}
+
+    def held_out(f: _Fit) -> np.ndarray | None:
+        """Held-out RMSE of every target at the fit's optimum (None without a validation window)."""
+        if vprep is None:
+            return None
+        if id(f) not in vcache:
+            key = tuple(f.space.names)
+            if key not in validators:
+                validators[key] = Validator(study, f.space, prepared=vprep)
+            vcache[id(f)] = validators[key].rmse(f.x[None])[0]
+            nonlocal evaluations
+            evaluations += 1
+        return vcache[id(f)]
+
+    temps = [k for k, t in enumerate(space.targets) if study.sensor(t).quantity == "temperature"]
+    refused: dict[tuple, str] = {}
+
+    def implausible(f: _Fit) -> list[str]:
+        return plausibility(study, f.space, f.x, set(f.names), BOUND_BAND)
+
+    def accept(f: _Fit, current: _Fit) -> bool:
+        """Plausible values, off their bounds, and a lower held-out RMSE of every temperature target."""
+        why = implausible(f)
+        v, vc = held_out(f), held_out(current)
+        if v is not None:
+            worse = [space.targets[k] for k in temps if not v[k] < vc[k]]
+            if worse:
+                why.append(
+                    "held-out RMSE not lower for "
+                    + ", ".join(f"{space.targets[k]} ({vc[k]:.3f} -> {v[k]:.3f})" for k in temps if not v[k] < vc[k])
+                )
+        if why:
+            refused.setdefault(tuple(sorted(f.names)), "; ".join(why))
+        return not why
+
     singles = {e.name: score((e.name,), base) for e in exts}
-    current, adopted, tied, weak = forward_select(base, singles, score, polish, compatible, max_adopted, held)
+    current, adopted, tied, weak = forward_select(
+        base, singles, score, polish, compatible, max_adopted, held, accept=accept
+    )
     rows = []
     for key, f in fits.items():
+        vf = held_out(f)
         rows.append(
             {
                 "extension": " + ".join(f.names),
                 CRITERION: f.bic - base.bic,
                 **{f"RMSE {t}": float(r) for t, r in zip(space.targets, f.rmse, strict=True)},
+                **{
+                    f"validation RMSE {t}": float(vf[k]) if vf is not None else np.nan
+                    for k, t in enumerate(space.targets)
+                },
+                "plausible": not implausible(f),
                 "adopted": bool(adopted) and key == tuple(sorted(adopted)),
                 "held_at_bounds": ", ".join(sorted(held(f))),
             }
         )
-    cols = ["extension", CRITERION] + [f"RMSE {t}" for t in space.targets] + ["adopted", "held_at_bounds"]
+    cols = (
+        ["extension", CRITERION]
+        + [f"RMSE {t}" for t in space.targets]
+        + [f"validation RMSE {t}" for t in space.targets]
+        + ["plausible", "adopted", "held_at_bounds"]
+    )
     cand = pd.DataFrame(rows, columns=cols)
     if len(cand):
         cand["n"] = cand["extension"].str.count(r" \+ ")
@@ -610,6 +672,19 @@ def diagnose(
         + (", ".join(adopted) if adopted else "none")
     )
     notes = [f"Started from {origin}."]
+    vtable = None
+    if vprep is not None:
+        vb = held_out(base)
+        notes.append(
+            f"Held-out window {study.period.validation_start} .. {study.period.validation_end} (no fit saw it): "
+            "RMSE of the study's structure "
+            + ", ".join(f"{t} {v:.3f} {unit_label(study, t)}" for t, v in zip(space.targets, vb, strict=True))
+            + "."
+        )
+        vtable = Validator(study, current.space, prepared=vprep).table(current.x)
+    for names, why in refused.items():
+        if names != tuple(sorted(adopted)):
+            notes.append(f"Not adopted: {' + '.join(names)}: {why}.")
     for names, cost in tied:
         notes.append(
             f"{' and '.join(names)} explain the misfit equally well (criterion within {TIE_DELTA:g}): the data cannot "
@@ -647,4 +722,5 @@ def diagnose(
         seconds=seconds,
         raw=raw,
         notes=notes,
+        validation=vtable,
     )

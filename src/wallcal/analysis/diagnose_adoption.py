@@ -30,7 +30,9 @@ def held_at_bounds(space, x, names=None, band: float = BOUND_BAND) -> frozenset:
     return frozenset(n for n, side in zip(space.names, sides, strict=True) if side and (names is None or n in names))
 
 
-def forward_select(base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED, held=None):
+def forward_select(
+    base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED, held=None, accept=None
+):
     """Forward selection of extensions by the criterion (the ``bic`` of each fit; lower is better).
 
     The best single candidate is adopted when it lowers the criterion by at least :data:`ADOPT_DELTA`; then the
@@ -62,6 +64,10 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
     held : callable, optional
         ``held(fit) -> frozenset`` of the study's parameters held at a bound at the fit's optimum. None: the
         strong threshold only.
+    accept : callable, optional
+        ``accept(fit, current) -> bool``: whether a fit may replace the structure adopted so far beyond its
+        criterion (``diagnose``: its new values inside their plausible ranges and off their bounds, and a lower
+        held-out RMSE of every temperature target). A step adopts only from the fits it accepts.
 
     Returns
     -------
@@ -87,6 +93,10 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         # link moves slowly in a few Jacobians, and the ranking of near-equals must not depend on that
         first = min(f.bic for f in trials)
         trials = [polish(f) if f.bic <= first + POLISH_MARGIN else f for f in trials]
+        if accept is not None:
+            trials = [f for f in trials if accept(f, current)]
+            if not trials:
+                break
         best = min(trials, key=lambda f: f.bic)
         threshold = ADOPT_DELTA
         before = frozenset() if held is None else held(current)
@@ -112,7 +122,8 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         ties = [n for n in dict.fromkeys(ties) if compatible(tuple(best.names) + (n,))]
         if ties and len(best.names) + len(ties) <= max_adopted:
             both = score(tuple(best.names) + tuple(ties), best)
-            if both.bic <= current.bic - threshold and (threshold == ADOPT_DELTA or before - held(both)):
+            ok = accept is None or accept(both, current)
+            if ok and both.bic <= current.bic - threshold and (threshold == ADOPT_DELTA or before - held(both)):
                 tied.append((new + ties, both.bic - best.bic))
                 new = new + ties
                 best = both

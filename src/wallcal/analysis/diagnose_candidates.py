@@ -22,6 +22,22 @@ COEFFICIENT_RANGE = 0.02
 #: OFFSET_SPREAD times the standard deviation of its measured signal
 OFFSET_ACCURACIES = 2.0
 OFFSET_SPREAD = 0.25
+#: half-range of the candidate offset of both face sensors: this many times the temperature targets' largest
+#: stated accuracy (the study states none for its boundary sensors; they are read by sensors of the same kind)
+FACE_OFFSET_ACCURACIES = 3.0
+
+# ---------------------------------------------------------------------------- plausible ranges
+# An extension is adopted only when its fitted value lies inside its plausible range and off the bounds of its
+# candidate box (``plausibility``); docs/identifiability.md, "Plausible values".
+#: a probe's placement tolerance: most distance from its nominal depth [m]
+PROBE_TOLERANCE = 0.008
+#: ISO 10456:2007 Table 4 gives temperature conversion coefficients of about 0.003 to 0.0056 1/K for insulation
+#: materials (0.0046 mineral wool); plausible up to this [1/K]
+COEFFICIENT_PLAUSIBLE = 0.006
+#: a contact resistance between two building layers: up to that of a thin unventilated air gap [m2K/W]
+CONTACT_PLAUSIBLE = 0.2
+#: a sensor offset (of a target, or of both faces): at most this many times the sensor's stated accuracy
+OFFSET_PLAUSIBLE_ACCURACIES = 2.0
 
 
 # ============================================================================ residual analysis
@@ -97,7 +113,8 @@ class Extension:
     name : str
         Its parameter name, e.g. ``"depth[T3A]"``.
     kind : str
-        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient`` or ``offset``.
+        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient``, ``offset`` or
+        ``face_offset``.
     table : dict
         Its ``[[calibration.parameters]]`` entry as written into the extended study.
     reason : str
@@ -257,4 +274,67 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
                 why(t, f"a constant offset of sensor {t}"),
             )
         )
+    acc = face_accuracy(study, space)
+    faces = (study.exterior.type, study.interior.type)
+    if acc > 0 and "heat_flux" not in faces and "offset[faces]" not in have:
+        half = float(f"{FACE_OFFSET_ACCURACIES * acc:.3g}")
+        lead = probes[0] if probes else None
+        out.append(
+            Extension(
+                "offset[faces]",
+                "face_offset",
+                {"sensor": "faces", "property": "offset", "bounds": [-half, half]},
+                why(lead, "one constant offset of both boundary (face) sensors: every temperature moves by it")
+                if lead
+                else "one constant offset of both boundary (face) sensors",
+            )
+        )
+    return out
+
+
+def face_accuracy(study, space) -> float:
+    """The largest stated accuracy of the temperature targets [K] (0 without any): the face sensors' assumed one."""
+    accs = [
+        study.sensor(t).accuracy
+        for t in space.targets
+        if study.sensor(t).quantity == "temperature" and study.sensor(t).accuracy
+    ]
+    return float(max(accs)) if accs else 0.0
+
+
+def plausible_range(study, space, p) -> tuple[float, float] | None:
+    """The documented plausible range [SI] of an extension's parameter ``p`` (a Parameter), or None (any value in
+    its box is plausible: the study's own parameters)."""
+    if p.property == "depth":
+        d = study.wall.probe(p.probe).depth
+        return d - PROBE_TOLERANCE, d + PROBE_TOLERANCE
+    if p.property == "conductivity_temperature_coefficient":
+        return 0.0, COEFFICIENT_PLAUSIBLE
+    if p.property == "contact_resistance":
+        return 0.0, CONTACT_PLAUSIBLE
+    if p.property == "offset":
+        if p.shifts:
+            acc = face_accuracy(study, space)
+        else:
+            acc = study.sensor(p.sensor).accuracy  # a relative accuracy is a gain: only the bound check
+        if not acc or not np.isfinite(acc):
+            return None
+        return -OFFSET_PLAUSIBLE_ACCURACIES * acc, OFFSET_PLAUSIBLE_ACCURACIES * acc
+    return None
+
+
+def plausibility(study, space, x, names, band: float) -> list[str]:
+    """Why the values of the extensions ``names`` at ``x`` [SI] are not plausible ([] when they all are): outside
+    their documented range (:func:`plausible_range`), or within ``band`` of their range from a bound of the
+    candidate's box (a value at a bound is never adopted silently)."""
+    out = []
+    sides = space.bound_sides(x, band)
+    for p, v, side in zip(space.parameters, np.asarray(x, dtype=float), sides, strict=True):
+        if p.name not in names:
+            continue
+        rng = plausible_range(study, space, p)
+        if side:
+            out.append(f"{p.name} = {v:.4g} at the {side} bound of its box")
+        elif rng is not None and not rng[0] - 1e-12 <= v <= rng[1] + 1e-12:
+            out.append(f"{p.name} = {v:.4g} outside its plausible range {rng[0]:.4g} .. {rng[1]:.4g}")
     return out
