@@ -77,7 +77,16 @@ from .diagnose_candidates import (  # noqa: F401
     residual_analysis,
     unit_label,
 )
-from .diagnose_scoring import FTOL, MAX_JACOBIANS, ar1_loglike, ar1_profile, debiased_residuals, refine  # noqa: F401
+from .diagnose_scoring import (  # noqa: F401
+    FTOL,
+    MAX_JACOBIANS,
+    SCORE_RESOLUTION,
+    ar1_loglike,
+    ar1_profile,
+    block_means,
+    debiased_residuals,
+    refine,
+)
 
 __all__ = [
     "ADOPT_DELTA",
@@ -145,6 +154,7 @@ class Diagnosis:
     raw: dict = field(default_factory=dict, repr=False)
     notes: list = field(default_factory=list)
     validation: pd.DataFrame | None = None  # validation.csv: the adopted structure on the held-out window
+    validation_base: dict = field(default_factory=dict)  # target -> held-out RMSE of the study's structure
 
     # ------------------------------------------------------------------ words
     def summary(self) -> str:
@@ -157,10 +167,27 @@ class Diagnosis:
             row = c[c["adopted"]].iloc[0]
             rm = ", ".join(f"{t} {self.rmse_base[t]:.3f} -> {row[f'RMSE {t}']:.3f} {units[t]}" for t in self.rmse_base)
             vals = ", ".join(f"{n} = {self.x[n]:.4g}" for n in self.adopted)
+            if self.validation is not None:
+                held = ", ".join(
+                    f"{t} {self.validation_base[t]:.3f} -> {row[f'validation RMSE {t}']:.3f} {units[t]}"
+                    for t in self.rmse_base
+                )
+                lines.append(
+                    f"The held-out window supports extending the calibration with {' + '.join(self.adopted)}: "
+                    f"held-out RMSE {held} (every temperature target lower, every value plausible; BIC change "
+                    f"{row[CRITERION]:+.1f}, adoption refuses a rise of {ADOPT_DELTA:g} or more). In-sample RMSE "
+                    f"{rm}. Recalibrated values: {vals}."
+                )
+            else:
+                lines.append(
+                    f"The data support extending the calibration with {' + '.join(self.adopted)}: BIC falls by "
+                    f"{-row[CRITERION]:.1f} against the study's structure (adoption needs a fall of at least "
+                    f"{ADOPT_DELTA:g}). RMSE {rm}. Recalibrated values: {vals}."
+                )
+        elif self.validation is not None:
             lines.append(
-                f"The data support extending the calibration with {' + '.join(self.adopted)}: BIC falls by "
-                f"{-row[CRITERION]:.1f} against the study's structure (adoption needs a fall of at least "
-                f"{ADOPT_DELTA:g}). RMSE {rm}. Recalibrated values: {vals}."
+                "The data support the study's structure: no plausible candidate extension lowers the held-out RMSE "
+                "of every temperature target."
             )
         else:
             lines.append(
@@ -418,6 +445,7 @@ def diagnose(
     max_jacobians: int = MAX_JACOBIANS,
     max_adopted: int = MAX_ADOPTED,
     kinds: tuple[str, ...] | None = None,
+    score_resolution: float | None = None,
 ) -> Diagnosis:
     """Which extensions of the calibration's structure the data support.
 
@@ -439,6 +467,9 @@ def diagnose(
     kinds : tuple of str, optional
         Candidate kinds to consider (default all: depth, contact_resistance,
         conductivity_temperature_coefficient, offset, face_offset).
+    score_resolution : float or None
+        Score the criterion on the residuals' means over blocks of this length [s] (e.g. 3600: hourly means;
+        default None: every sample).
 
     Returns
     -------
@@ -490,7 +521,7 @@ def diagnose(
         for x_start, ll_before in starts:
             xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
             xs = np.clip(xs, sp.lower, sp.upper)
-            ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau)[0] if ll_before is not None else 0.0
+            ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau, block)[0] if ll_before is not None else 0.0
             # a probe depth starting on a contact's double node is also fitted from just off it (node_starts)
             for s in node_starts(sp, ev.inp.wall, ev.inp.options.contact_layers, xs):
                 u, n_runs = refine(
@@ -502,7 +533,7 @@ def diagnose(
                 x = sp.from_unit(u)
                 E = ev.errors(x[None])[0]
                 evaluations += n_runs + 2
-                ll, n, _, _ = ar1_profile(E, ev.mask, tau)
+                ll, n, _, _ = ar1_profile(E, ev.mask, tau, block)
                 if ll_before is not None:
                     ll = ll_before + (ll - ll0)
                 if best is None or ll > best[0]:
@@ -521,6 +552,11 @@ def diagnose(
         ]
     )
     tau = np.where(np.isfinite(tau) & (tau > 0), tau, 0.0)
+    # the criterion's resolution: hourly means of the residuals (SCORE_RESOLUTION), whole samples
+    block = 1
+    if score_resolution and len(prepared.times) > 1:
+        step = float(np.median((prepared.times[1:] - prepared.times[:-1]).total_seconds()))  # sampling [s]
+        block = max(1, int(round(score_resolution / step)))
     E0 = ev_study.errors(x0[None])[0]
     noise = np.array([float(np.std(E0[k][ev_study.mask[k]])) for k in range(len(tau))])
     noise = np.where(np.isfinite(noise) & (noise > 0), noise, 1.0)
@@ -529,7 +565,7 @@ def diagnose(
     # is re-polished to convergence under the criterion's error model, so that no candidate gains from that alone
     base = fit([], (), [(dict(zip(space.names, x0, strict=True)), None)], jacobians=BASE_JACOBIANS * max_jacobians)
     ev0 = evaluator(space)
-    _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask, tau)
+    _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask, tau, block)
     resid = residual_analysis(ev0, base.x, prepared.times)
     y = {t: ev0.y[k][ev0.mask[k]] for k, t in enumerate(space.targets)}
     exts = [e for e in propose(study, space, resid, y) if kinds is None or e.kind in kinds]
@@ -631,8 +667,22 @@ def diagnose(
         return not why
 
     singles = {e.name: score((e.name,), base) for e in exts}
+
+    def rank(f: _Fit) -> float:
+        """The held-out score: mean over the temperature targets of held-out RMSE / accuracy."""
+        v = held_out(f)
+        return float(np.mean([v[k] / max(tau[k], 1e-12) for k in temps])) if temps else float(np.mean(v))
+
     current, adopted, tied, weak = forward_select(
-        base, singles, score, polish, compatible, max_adopted, held, accept=accept
+        base,
+        singles,
+        score,
+        polish,
+        compatible,
+        max_adopted,
+        held,
+        accept=accept,
+        rank=rank if vprep is not None else None,
     )
     rows = []
     for key, f in fits.items():
@@ -723,4 +773,5 @@ def diagnose(
         raw=raw,
         notes=notes,
         validation=vtable,
+        validation_base=dict(zip(space.targets, map(float, held_out(base)), strict=True)) if vprep is not None else {},
     )

@@ -31,7 +31,15 @@ def held_at_bounds(space, x, names=None, band: float = BOUND_BAND) -> frozenset:
 
 
 def forward_select(
-    base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED, held=None, accept=None
+    base,
+    singles: dict,
+    score,
+    polish,
+    compatible,
+    max_adopted: int = MAX_ADOPTED,
+    held=None,
+    accept=None,
+    rank=None,
 ):
     """Forward selection of extensions by the criterion (the ``bic`` of each fit; lower is better).
 
@@ -68,6 +76,11 @@ def forward_select(
         ``accept(fit, current) -> bool``: whether a fit may replace the structure adopted so far beyond its
         criterion (``diagnose``: its new values inside their plausible ranges and off their bounds, and a lower
         held-out RMSE of every temperature target). A step adopts only from the fits it accepts.
+    rank : callable, optional
+        ``rank(fit) -> float``, the held-out score (lower is better) when the study has a validation window. The
+        held-out evidence then decides: every candidate is tried (the in-sample criterion may be blind to it),
+        a step adopts the accepted fit of the lowest rank, provided the criterion does not reject it strongly
+        (it rises by less than :data:`ADOPT_DELTA`); no weak rule and no ties.
 
     Returns
     -------
@@ -76,6 +89,8 @@ def forward_select(
         alone), and the steps taken on the weaker threshold as (names adopted, criterion change of the step,
         parameters held before, parameters held after).
     """
+    if rank is not None:
+        return _select_held_out(base, singles, score, compatible, max_adopted, accept, rank)
     useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
     current = base
     adopted: tuple = ()
@@ -132,3 +147,22 @@ def forward_select(
         current = best
         adopted = tuple(best.names)
     return current, adopted, tied, weak
+
+
+def _select_held_out(base, singles, score, compatible, max_adopted, accept, rank):
+    """Forward selection on held-out evidence (see :func:`forward_select`, ``rank``)."""
+    order = [n for n, _ in sorted(singles.items(), key=lambda kv: rank(kv[1]))]
+    current = base
+    adopted: tuple = ()
+    while len(adopted) < max_adopted:
+        if not adopted:
+            trials = [singles[n] for n in order]
+        else:
+            pool = [n for n in order if n not in adopted and compatible(adopted + (n,))][:MAX_TRIALS]
+            trials = [score(adopted + (n,), current) for n in pool]
+        trials = [f for f in trials if f.bic < current.bic + ADOPT_DELTA and (accept is None or accept(f, current))]
+        if not trials:
+            break
+        current = min(trials, key=rank)
+        adopted = tuple(current.names)
+    return current, adopted, [], []
