@@ -148,3 +148,61 @@ def test_passys_as_measured_adopts_only_what_the_window_confirms(tmp_path):
     assert (v.loc[list(temps), "rmse"] < 0.7).all()
     d.write(tmp_path / "diag")
     assert set(pd.read_csv(tmp_path / "diag" / "validation.csv").columns) == set(VALIDATION_COLUMNS)
+
+
+# ---------------------------------------------------------------------------- posterior predictive bands
+@pytest.mark.slow
+def test_posterior_predictive_trh(trh, tmp_path):
+    """The posterior predicts the held-out window from its draws plus the error model: validation.csv with the
+    band's coverage and width, predictive.csv per timestamp and sensor; --predict any other period (modest
+    chain settings: the bands, not the chain, are under test)."""
+    from wallcal.analysis.posterior import posterior
+    from wallcal.cli import main
+
+    res = calibrate(trh, progress=False)
+    res.write(tmp_path / "cal")
+    p = posterior(
+        trh, x_start=res.x_opt, walkers=16, steps=40, progress=False, nonunique_candidates=16, predictive_draws=60
+    )
+    p.write_into(tmp_path)
+    v = pd.read_csv(tmp_path / "validation.csv").set_index("sensor")
+    assert list(v.columns) == ["rmse", "mbe", "n", "coverage_95", "band_width_95"]
+    row = v.loc["interface"]
+    assert row["n"] == 2016 and row["rmse"] <= 0.25
+    # measured figures (docs/identifiability.md): coverage 1.00 with a 0.90 K band - the fitted period's errors
+    # (sigma 0.23 K) are larger than the held-out period's (0.14 K): wider than it should be
+    assert 0.85 <= row["coverage_95"] and 0.5 < row["band_width_95"] < 1.5
+    b = pd.read_csv(tmp_path / "predictive.csv")
+    assert list(b.columns) == ["timestamp", "sensor", "measured", "median", "p2.5", "p97.5"]
+    assert len(b) == 2016 and (b["p2.5"] <= b["median"]).all() and (b["median"] <= b["p97.5"]).all()
+    out = tmp_path / "post"
+    argv = ["posterior", str(TRH), "--from", str(tmp_path / "cal"), "--walkers", "16", "--steps", "30"]
+    assert main(argv + ["--predict", "2021-01-20", "2021-01-21T23:50", "--out", str(out), "--quiet"]) == 0
+    s = pd.read_csv(out / "predictive_summary.csv").set_index("sensor")
+    assert 280 < s.loc["interface", "n"] <= 288 and not (out / "validation.csv").exists()
+    assert main(argv + ["--predict", "2021-01-20", "yesterday-ish", "--out", str(out), "--quiet"]) == 2
+
+
+@needs_passys
+@pytest.mark.slow
+def test_posterior_predictive_passys_as_measured():
+    """PASSYS with the face offset at 0, the structure diagnose adopts (offset[faces]): the 95 % bands cover at least
+    85 % of the held-out points of every temperature sensor. They are too wide (measured 1.00, 0.99, 1.00 with
+    bands of 2.5-2.9 K; docs/identifiability.md): the fitted period's errors (sigma 0.62-0.77 K) exceed the held-out
+    period's (0.40-0.60 K), so the upper limit of 99 % is not met and not asserted."""
+    from wallcal.analysis.posterior import posterior
+
+    st = load_study(PASSYS)
+    raw = copy.deepcopy(st.raw)
+    for face in ("exterior", "interior"):
+        raw["boundary"][face]["offset"] = 0.0
+    s = parse_study(raw, base_dir=PASSYS.parent.resolve(), source=str(PASSYS)).replace(path=PASSYS.resolve())
+    d = diagnose(s, progress=False)
+    x0 = np.array([d.x[n] for n in d.study.calibration.names])
+    p = posterior(
+        d.study, x_start=x0, walkers=16, steps=40, progress=False, nonunique_candidates=16, predictive_draws=60
+    )
+    v = p.predictive.table.set_index("sensor")
+    for t in ("T_4", "T_8", "T_12"):
+        assert 0.85 <= v.loc[t, "coverage_95"] and v.loc[t, "band_width_95"] < 3.5, v
+        assert v.loc[t, "rmse"] < 0.7

@@ -446,6 +446,7 @@ def diagnose(
     max_adopted: int = MAX_ADOPTED,
     kinds: tuple[str, ...] | None = None,
     score_resolution: float | None = None,
+    effective_bias_prior: bool = True,
 ) -> Diagnosis:
     """Which extensions of the calibration's structure the data support.
 
@@ -470,6 +471,9 @@ def diagnose(
     score_resolution : float or None
         Score the criterion on the residuals' means over blocks of this length [s] (e.g. 3600: hourly means;
         default None: every sample).
+    effective_bias_prior : bool
+        Weigh each target's bias prior in the recalibrations against the residuals' effective samples
+        n (1 - phi) / (1 + phi) (default), not all n of them (False: the bias absorbs any level error).
 
     Returns
     -------
@@ -560,6 +564,21 @@ def diagnose(
     E0 = ev_study.errors(x0[None])[0]
     noise = np.array([float(np.std(E0[k][ev_study.mask[k]])) for k in range(len(tau))])
     noise = np.where(np.isfinite(noise) & (noise > 0), noise, 1.0)
+    if effective_bias_prior:
+        # the bias's prior weighed against the residuals' effective samples n (1 - phi) / (1 + phi), not all n of
+        # them: with phi ~ 0.995 the n samples are worth about n / 400 independent ones, and counted as n they
+        # swamp the prior, so that the fit leaves any level error to the "bias" (docs/identifiability.md, "The
+        # error model")
+        from .posterior_likelihood import lag1
+
+        ph0 = np.array(
+            [
+                lag1(np.where(ev_study.mask[k], E0[k] - E0[k][ev_study.mask[k]].mean(), 0.0), ev_study.mask[k])
+                for k in range(len(tau))
+            ]
+        )
+        ph0 = np.clip(np.nan_to_num(ph0), 0.0, 0.995)
+        noise = noise * np.sqrt((1.0 + ph0) / (1.0 - ph0))
     say("recalibrating the study's structure (warm start)", force=True)
     # the start is the optimum of the study's objective, which counts a sensor's bias as misfit: the base structure
     # is re-polished to convergence under the criterion's error model, so that no candidate gains from that alone

@@ -77,6 +77,10 @@ class PosteriorResult:
     seconds: float
     status: str = "complete"
     warnings: list = field(default_factory=list)
+    #: the posterior predictive band (:class:`~wallcal.analysis.posterior_predictive.Predictive`) or None
+    predictive: object = None
+    #: whether ``predictive`` is of the study's validation window (written as validation.csv)
+    predicted_validation: bool = False
     truth: np.ndarray | None = None
     tempering: dict = field(default_factory=lambda: {"kind": "none", "weight": 1.0})
     checks: pd.DataFrame = field(default_factory=pd.DataFrame)
@@ -200,6 +204,14 @@ class PosteriorResult:
             "structure": self.structure,
             "checks": self.checks.reset_index().to_dict(orient="records"),
             "summary": self.summary.reset_index().to_dict(orient="records"),
+            "predictive": None
+            if self.predictive is None
+            else {
+                "window": [str(t) for t in self.predictive.window],
+                "validation_window": self.predicted_validation,
+                "draws": self.predictive.draws,
+                "table": self.predictive.table.to_dict(orient="records"),
+            },
         }
 
     def write_into(self, d: Path) -> None:
@@ -209,6 +221,10 @@ class PosteriorResult:
         self.combinations.to_csv(d / "posterior_combinations.csv", float_format="%.6g")
         self.nonunique.to_csv(d / "non_uniqueness.csv", float_format="%.6g")
         self.checks.to_csv(d / "posterior_checks.csv", float_format="%.6g")
+        if self.predictive is not None:
+            self.predictive.bands.to_csv(d / "predictive.csv", index=False, float_format="%.6g")
+            name = "validation.csv" if self.predicted_validation else "predictive_summary.csv"
+            self.predictive.table.to_csv(d / name, index=False, float_format="%.6g")
         np.savez_compressed(
             d / "chain.npz",
             chain=self.chain,
