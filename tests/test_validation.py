@@ -206,3 +206,21 @@ def test_posterior_predictive_passys_as_measured():
     for t in ("T_4", "T_8", "T_12"):
         assert 0.85 <= v.loc[t, "coverage_95"] and v.loc[t, "band_width_95"] < 3.5, v
         assert v.loc[t, "rmse"] < 0.7
+
+
+def test_report_shows_the_held_out_window_beside_the_fitted_period(trh, tmp_path):
+    from wallcal.report import HELD_OUT_TITLE, held_out_table, write_report
+    from wallcal.workflow import StageOutput
+
+    m = pd.DataFrame({"base": [0.55], "calibrated": [0.2]}, index=pd.Index(["interface"], name="signal"))
+    v = pd.DataFrame({"sensor": ["interface"], "rmse": [0.116], "mbe": [0.064], "n": [2016]})
+    t = held_out_table(m["calibrated"], v)
+    assert list(t.columns) == ["fitted RMSE", "held-out RMSE", "held-out MBE", "held-out n"]
+    so = StageOutput("calibration", "Automatic calibration", text=["least-squares"])
+    so.tables += [("Calibrated properties", pd.DataFrame({"x": [1.0]}), ()), ("RMSE", m, ()), (HELD_OUT_TITLE, t, ())]
+    data = StageOutput("data", "Data")
+    data.tables.append(("Measured", pd.DataFrame({"min": [-5.0], "max": [5.0]}, index=["interface"]), ()))
+    page = write_report(trh, [data, so], tmp_path / "index.html").read_text()
+    assert "of which 2021-02-02 00:05:00 to 2021-02-15 23:55:00 held out for validation" in page
+    assert "RMSE fitted period -&gt; held-out window: interface 0.200 -&gt; 0.116" in page
+    assert HELD_OUT_TITLE in page

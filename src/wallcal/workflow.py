@@ -230,6 +230,13 @@ def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
     if res.floors:
         m["noise floor (reference wall)"] = pd.Series(res.floors)
     so.tables.append(("RMSE per sensor before and after calibration", m, ()))
+    from .report import HELD_OUT_TITLE, held_out_table
+    from .validation import read as read_validation
+
+    held = read_validation(d)  # the held-out window ([period] validation_start/end), when the study has one
+    if held is not None:
+        so.files.append("validation.csv")
+        so.tables.append((HELD_OUT_TITLE, held_out_table(m["calibrated"], held), ()))
     so.figures.append(("Measured vs base case vs calibrated (Fig. 5)", d / "fit.png"))
     so.figures.append(("Convergence of the calibration", d / "convergence.png"))
     so.text += [f"Note: {n}" for n in res.notes]
