@@ -32,8 +32,8 @@ FACE_OFFSET_ACCURACIES = 3.0
 #: a probe's placement tolerance: most distance from its nominal depth [m]
 PROBE_TOLERANCE = 0.008
 #: ISO 10456:2007 Table 4 gives temperature conversion coefficients of about 0.003 to 0.0056 1/K for insulation
-#: materials (0.0046 mineral wool); plausible up to this [1/K]
-COEFFICIENT_PLAUSIBLE = 0.006
+#: materials (0.0046 mineral wool); plausible up to this, about 1.5 x the largest, for the fit's own uncertainty [1/K]
+COEFFICIENT_PLAUSIBLE = 0.008
 #: a contact resistance between two building layers: up to that of a thin unventilated air gap [m2K/W]
 CONTACT_PLAUSIBLE = 0.2
 #: a sensor offset (of a target, or of both faces): at most this many times the sensor's stated accuracy
