@@ -447,6 +447,7 @@ def diagnose(
     kinds: tuple[str, ...] | None = None,
     score_resolution: float | None = None,
     effective_bias_prior: bool = True,
+    selection: str = "held-out",
 ) -> Diagnosis:
     """Which extensions of the calibration's structure the data support.
 
@@ -474,6 +475,11 @@ def diagnose(
     effective_bias_prior : bool
         Weigh each target's bias prior in the recalibrations against the residuals' effective samples
         n (1 - phi) / (1 + phi) (default), not all n of them (False: the bias absorbs any level error).
+    selection : {"held-out", "criterion"}
+        ``"held-out"`` (default): adopt only plausible extensions, and with a validation window only those that
+        lower the held-out RMSE of every temperature target (the held-out evidence decides); ``"criterion"``: the
+        in-sample criterion alone, as before the validation window existed (for comparison; the held-out RMSEs are
+        still reported).
 
     Returns
     -------
@@ -497,6 +503,8 @@ def diagnose(
         bad = [k for k in kinds if k not in all_kinds]
         if bad:
             raise StudyError([f"kinds: unknown extension kind(s) {', '.join(map(repr, bad))}; valid: {all_kinds}"])
+    if selection not in ("held-out", "criterion"):
+        raise StudyError([f"selection: {selection!r} is not one of 'held-out', 'criterion'"])
     say = _Say(progress)
     prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the structure diagnosis")
     x0, origin = start_point(study, space, start, progress)
@@ -700,8 +708,8 @@ def diagnose(
         compatible,
         max_adopted,
         held,
-        accept=accept,
-        rank=rank if vprep is not None else None,
+        accept=accept if selection == "held-out" else None,
+        rank=rank if vprep is not None and selection == "held-out" else None,
     )
     rows = []
     for key, f in fits.items():
