@@ -28,9 +28,10 @@ FACE_OFFSET_ACCURACIES = 3.0
 
 # ---------------------------------------------------------------------------- plausible ranges
 # An extension is adopted only when its fitted value lies inside its plausible range and off the bounds of its
-# candidate box (``plausibility``); docs/identifiability.md, "Plausible values".
-#: a probe's placement tolerance: most distance from its nominal depth [m]
-PROBE_TOLERANCE = 0.008
+# candidate box (``plausibility``); docs/identifiability.md, "Real walls".
+#: a probe's placement tolerance: most distance from its nominal depth [m] (the candidate's box: a depth is
+#: plausible inside it and off its bounds)
+PROBE_TOLERANCE = DEPTH_RANGE
 #: ISO 10456:2007 Table 4 gives temperature conversion coefficients of about 0.003 to 0.0056 1/K for insulation
 #: materials (0.0046 mineral wool); plausible up to this, about 1.5 x the largest, for the fit's own uncertainty [1/K]
 COEFFICIENT_PLAUSIBLE = 0.008
