@@ -143,6 +143,9 @@ def test_candidates_proposed(null_campaign):
         "offset[T3A]",
         "offset[T2A]",
         "offset[T1A]",
+        "response_time[T3A]",  # a first-order lag of each probe's reading
+        "response_time[T2A]",
+        "response_time[T1A]",
         "offset[faces]",  # both boundary sensors together: every temperature moves by it
     ]
 
@@ -237,7 +240,7 @@ def test_no_structure_error_adopts_nothing(null_campaign, tmp_path):
     d = diagnose(st, progress=msgs.append)
     assert d.adopted == []
     assert not d.candidates["adopted"].any()
-    assert len(d.candidates) == 14  # the single candidates (with the face offset); no combination is useful
+    assert len(d.candidates) == 17  # the single candidates (with the response times and the face offset); none useful
     assert (d.candidates["delta_bic"] > -ADOPT_DELTA).all()
     assert d.study.calibration.names == st.calibration.names
     assert "support the study's structure" in d.summary()

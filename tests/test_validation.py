@@ -224,3 +224,32 @@ def test_report_shows_the_held_out_window_beside_the_fitted_period(trh, tmp_path
     assert "of which 2021-02-02 00:05:00 to 2021-02-15 23:55:00 held out for validation" in page
     assert "RMSE fitted period -&gt; held-out window: interface 0.200 -&gt; 0.116" in page
     assert HELD_OUT_TITLE in page
+
+
+def test_response_time_is_a_first_order_lag(trh):
+    """A probe's response time tau filters its simulated series: m_t = m_(t-1) + (1 - exp(-step/tau)) (x_t -
+    m_(t-1)); tau 0 leaves it alone. The candidate is proposed for every temperature target."""
+    from wallcal.analysis.diagnose_candidates import propose
+    from wallcal.calibration.objective import Evaluator, first_order_lag
+
+    x = np.zeros((2, 50))
+    x[:, 10:] = 1.0
+    y = first_order_lag(x, 600.0, np.array([0.0, 1200.0]))
+    assert np.array_equal(y[0], x[0])
+    assert y[1][10] == pytest.approx(1 - np.exp(-0.5)) and y[1][12] == pytest.approx(1 - np.exp(-1.5))
+    raw = copy.deepcopy(trh.raw)
+    raw["calibration"]["parameters"].append({"sensor": "interface", "property": "response_time", "bounds": [0, 3600]})
+    sp = parse_space(trh, raw["calibration"])
+    assert sp.names[-1] == "response_time[interface]" and sp.offsets(sp.base[None]).tolist() == [[0.0]]
+    ev = Evaluator(prepare(trh), sp)
+    x0 = sp.base.copy()
+    x1 = x0.copy()
+    x1[-1] = 1800.0
+    s0, s1 = ev.simulate(np.array([x0, x1]))[:, 0]
+    assert np.allclose(s1, first_order_lag(s0[None], 600.0, np.array([1800.0]))[0])
+    assert not np.allclose(s0, s1)
+    bad = copy.deepcopy(trh.raw)
+    bad["calibration"]["parameters"].append({"sensor": "interface", "property": "response_time", "bounds": [-5, 60]})
+    with pytest.raises(StudyError, match="a response time is >= 0 s"):
+        parse_study(bad, base_dir=TRH.parent)
+    assert "response_time[interface]" in [e.name for e in propose(trh, trh.calibration)]

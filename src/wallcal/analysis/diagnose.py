@@ -468,7 +468,7 @@ def diagnose(
         Most extensions adopted together.
     kinds : tuple of str, optional
         Candidate kinds to consider (default all: depth, contact_resistance,
-        conductivity_temperature_coefficient, offset, face_offset).
+        conductivity_temperature_coefficient, offset, response_time, face_offset).
     score_resolution : float or None
         Score the criterion on the residuals' means over blocks of this length [s] (e.g. 3600: hourly means;
         default None: every sample).
@@ -498,7 +498,14 @@ def diagnose(
 
     t0 = time.perf_counter()
     space = space_of(study)
-    all_kinds = ("depth", "contact_resistance", "conductivity_temperature_coefficient", "offset", "face_offset")
+    all_kinds = (
+        "depth",
+        "contact_resistance",
+        "conductivity_temperature_coefficient",
+        "offset",
+        "response_time",
+        "face_offset",
+    )
     if kinds is not None:
         bad = [k for k in kinds if k not in all_kinds]
         if bad:

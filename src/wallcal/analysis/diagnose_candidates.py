@@ -25,6 +25,8 @@ OFFSET_SPREAD = 0.25
 #: half-range of the candidate offset of both face sensors: this many times the temperature targets' largest
 #: stated accuracy (the study states none for its boundary sensors; they are read by sensors of the same kind)
 FACE_OFFSET_ACCURACIES = 3.0
+#: box of a candidate probe response time (first-order lag) [s]
+RESPONSE_RANGE = (0.0, 3600.0)
 
 # ---------------------------------------------------------------------------- plausible ranges
 # An extension is adopted only when its fitted value lies inside its plausible range and off the bounds of its
@@ -39,6 +41,9 @@ COEFFICIENT_PLAUSIBLE = 0.008
 CONTACT_PLAUSIBLE = 0.2
 #: a sensor offset (of a target, or of both faces): at most this many times the sensor's stated accuracy
 OFFSET_PLAUSIBLE_ACCURACIES = 2.0
+#: a probe's first-order response time: a sheathed probe in its hole, or a sensor under tape, responds within
+#: minutes; up to this [s]
+RESPONSE_PLAUSIBLE = 1800.0
 
 
 # ============================================================================ residual analysis
@@ -114,8 +119,8 @@ class Extension:
     name : str
         Its parameter name, e.g. ``"depth[T3A]"``.
     kind : str
-        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient``, ``offset`` or
-        ``face_offset``.
+        ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient``, ``offset``, ``response_time``
+        or ``face_offset``.
     table : dict
         Its ``[[calibration.parameters]]`` entry as written into the extended study.
     reason : str
@@ -275,6 +280,18 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
                 why(t, f"a constant offset of sensor {t}"),
             )
         )
+    for t in probes:
+        name = f"response_time[{t}]"
+        if name in have:
+            continue
+        out.append(
+            Extension(
+                name,
+                "response_time",
+                {"sensor": t, "property": "response_time", "bounds": list(RESPONSE_RANGE)},
+                why(t, f"probe {t} reading its temperature through a first-order lag"),
+            )
+        )
     acc = face_accuracy(study, space)
     faces = (study.exterior.type, study.interior.type)
     if acc > 0 and "heat_flux" not in faces and "offset[faces]" not in have:
@@ -313,6 +330,8 @@ def plausible_range(study, space, p) -> tuple[float, float] | None:
         return 0.0, COEFFICIENT_PLAUSIBLE
     if p.property == "contact_resistance":
         return 0.0, CONTACT_PLAUSIBLE
+    if p.property == "response_time":
+        return 0.0, RESPONSE_PLAUSIBLE
     if p.property == "offset":
         if p.shifts:
             acc = face_accuracy(study, space)

@@ -34,7 +34,7 @@ LAYER_PROPERTIES = (
     "contact_resistance",
 )
 PROBE_PROPERTIES = ("depth",)
-SENSOR_PROPERTIES = ("offset",)
+SENSOR_PROPERTIES = ("offset", "response_time")
 #: ``sensor = "faces"`` with ``property = "offset"``: one offset of both boundary (face) sensors
 FACES = "faces"
 OBJECTIVES = ("cse", "rmse_accuracy", "weighted_cse", "weighted_rmse")
@@ -147,6 +147,16 @@ class ParameterSpace:
         u = self.to_unit(np.asarray(x, dtype=float))
         return ["lower" if v <= band else "upper" if v >= 1 - band else "" for v in u]
 
+    def response_times(self, X: np.ndarray) -> dict[int, np.ndarray]:
+        """Target index -> first-order response time [s] per candidate, shape (n_candidates,), of every
+        ``response_time`` parameter (a probe that reads its temperature through a first-order lag)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return {
+            self.targets.index(p.sensor): X[:, j]
+            for j, p in enumerate(self.parameters)
+            if p.property == "response_time" and p.sensor in self.targets
+        }
+
     @property
     def contact_layers(self) -> frozenset[int]:
         """Layers whose contact resistance is a parameter (the grid needs a contact link there)."""
@@ -158,7 +168,7 @@ class ParameterSpace:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         out = np.zeros((X.shape[0], len(self.targets)))
         for j, p in enumerate(self.parameters):
-            if p.sensor is not None and p.sensor in self.targets:
+            if p.property == "offset" and p.sensor is not None and p.sensor in self.targets:
                 out[:, self.targets.index(p.sensor)] += X[:, j]
             for name in p.shifts:  # a face offset: the opposite correction of every temperature target
                 out[:, self.targets.index(name)] -= X[:, j]
@@ -168,7 +178,7 @@ class ParameterSpace:
         """Sensor name -> calibrated offset [degC or W/m2] of the ``offset`` parameters at ``x``."""
         out: dict[str, float] = {}
         for p, v in zip(self.parameters, np.asarray(x, dtype=float), strict=True):
-            if p.sensor is not None and not p.shifts:
+            if p.property == "offset" and p.sensor is not None and not p.shifts:
                 out[p.sensor] = out.get(p.sensor, 0.0) + float(v)
             for name in p.shifts:
                 out[name] = out.get(name, 0.0) - float(v)
@@ -509,8 +519,9 @@ def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=(
 
 
 def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets, temperature_targets=()):
-    """A ``sensor = "..."``, ``property = "offset"`` table: a target sensor's offset [degC or W/m2], base 0,
-    absolute bounds around 0."""
+    """A ``sensor = "..."`` table: ``property = "offset"``, a target sensor's offset [degC or W/m2], or
+    ``"response_time"``, a temperature target's first-order response time [s] (its reading lags the temperature
+    at its depth: dm/dt = (T - m) / tau); base 0, absolute bounds holding 0."""
     prop = pt.str("property", choices=SENSOR_PROPERTIES)
     kind = pt.str("bounds_kind", "absolute", choices=("absolute",))
     name = pt.raw("sensor")
@@ -536,6 +547,13 @@ def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets, tem
             f"{closest(name, list(targets))}",
         )
         return None
+    if prop == "response_time":
+        if name not in temperature_targets:
+            problems.add(pt.at("sensor"), f"{name!r}: a response time belongs to a temperature target")
+            return None
+        if lo is not None and hi is not None and lo < 0.0:
+            problems.add(pt.at("bounds"), f"a response time is >= 0 s, got lower bound {lo:g}")
+            return None
     if wall is None or prop is None or kind is None or lo is None or hi is None:
         return None
-    return Parameter(f"offset[{name}]", prop, (), None, 0.0, float(lo), float(hi), sensor=name), ("sensor:" + name,)
+    return Parameter(f"{prop}[{name}]", prop, (), None, 0.0, float(lo), float(hi), sensor=name), ("sensor:" + name,)
