@@ -49,11 +49,14 @@ def prepare_window(study: Study, batches: bool = True):
         ) from None
 
 
-def score_wall(study: Study, wall=None, offsets: dict[str, float] | None = None) -> pd.DataFrame | None:
+def score_wall(
+    study: Study, wall=None, offsets: dict[str, float] | None = None, response_times: dict[str, float] | None = None
+) -> pd.DataFrame | None:
     """Every sensor's RMSE and MBE over the validation window with ``wall`` (default the study's).
 
     ``offsets``: sensor -> correction [degC or W/m2] added to its measured signal (calibrated ``offset``
-    parameters). None when the study has no validation window.
+    parameters); ``response_times``: probe -> first-order response time [s] of its reading (calibrated
+    ``response_time`` parameters). None when the study has no validation window.
     """
     prep = prepare_window(study, batches=False)
     if prep is None:
@@ -65,7 +68,16 @@ def score_wall(study: Study, wall=None, offsets: dict[str, float] | None = None)
     y = res.measured[names].to_numpy(dtype=float).T
     if offsets:
         y = y + np.array([offsets.get(n, 0.0) for n in names])[:, None]
-    return _metrics.validation_table(names, y, res.simulated[names].to_numpy(dtype=float).T)
+    sim = res.simulated[names].to_numpy(dtype=float).T
+    if response_times:
+        from .calibration.objective import first_order_lag
+
+        t = prep.times
+        step = float(np.median((t[1:] - t[:-1]).total_seconds())) if len(t) > 1 else 1.0
+        for k, n in enumerate(names):
+            if response_times.get(n, 0.0) > 0:
+                sim[k] = first_order_lag(sim[k][None], step, np.array([response_times[n]]))[0]
+    return _metrics.validation_table(names, y, sim)
 
 
 class Validator:

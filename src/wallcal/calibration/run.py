@@ -160,7 +160,8 @@ class CalibrationResult:
         from ..validation import write as write_validation
 
         # the held-out window ([period] validation_start/end), which the fit never saw
-        write_validation(score_wall(self.study, self.wall_opt, self.space.offset_values(self.x_opt)), d)
+        lags = {self.space.targets[k]: float(v[0]) for k, v in self.space.response_times(self.x_opt).items()}
+        write_validation(score_wall(self.study, self.wall_opt, self.space.offset_values(self.x_opt), lags), d)
         from .plots import plot_convergence, plot_fit
 
         plot_convergence(self, d / "convergence.png")
