@@ -19,6 +19,9 @@ TIE_DELTA = 2.0
 POLISH_MARGIN = 25.0
 #: after the single candidates, each forward step tries the best few useful ones only
 MAX_TRIALS = 3
+#: on held-out evidence, each forward step tries at most this many of the promising extensions (those whose own fit
+#: predicts the held-out window better than the base structure), best first
+HELD_OUT_TRIALS = 6
 #: most extensions adopted together
 MAX_ADOPTED = 4
 
@@ -80,7 +83,8 @@ def forward_select(
         ``rank(fit) -> float``, the held-out score (lower is better) when the study has a validation window. The
         held-out evidence then decides: every candidate is tried (the in-sample criterion may be blind to it),
         a step adopts the accepted fit of the lowest rank, provided the criterion does not reject it strongly
-        (it rises by less than :data:`ADOPT_DELTA`); no weak rule and no ties.
+        (it rises by less than :data:`ADOPT_DELTA`); each later step tries the :data:`HELD_OUT_TRIALS` best
+        promising extensions (their own fit predicts the window better than ``base``); no weak rule and no ties.
 
     Returns
     -------
@@ -152,13 +156,15 @@ def forward_select(
 def _select_held_out(base, singles, score, compatible, max_adopted, accept, rank):
     """Forward selection on held-out evidence (see :func:`forward_select`, ``rank``)."""
     order = [n for n, _ in sorted(singles.items(), key=lambda kv: rank(kv[1]))]
+    # worth combining: the extensions whose own fit predicts the held-out window better than the base structure
+    promising = [n for n in order if rank(singles[n]) < rank(base)]
     current = base
     adopted: tuple = ()
     while len(adopted) < max_adopted:
         if not adopted:
             trials = [singles[n] for n in order]
         else:
-            pool = [n for n in order if n not in adopted and compatible(adopted + (n,))][:MAX_TRIALS]
+            pool = [n for n in promising if n not in adopted and compatible(adopted + (n,))][:HELD_OUT_TRIALS]
             trials = [score(adopted + (n,), current) for n in pool]
         trials = [f for f in trials if f.bic < current.bic + ADOPT_DELTA and (accept is None or accept(f, current))]
         if not trials:
