@@ -256,9 +256,15 @@ def _stage_diagnose(ctx: RunContext, d: Path, so: StageOutput):
     so.text += res.summary().splitlines()
     if ctx.quick:
         so.text.append("Quick run: at most 3 Jacobians per candidate; one extension adopted at most.")
+    rule = (
+        "with the held-out window, an extension is adopted when its values are plausible and it lowers the held-out "
+        "RMSE of every temperature target (columns 'validation RMSE')"
+        if ctx.study.period.validation is not None
+        else "an extension is adopted when it lowers BIC by 10 or more and its values are plausible"
+    )
     so.text.append(
         f"{CRITERION}: the change of BIC on the AR(1) likelihood of the residuals against the study's structure "
-        "(negative is better; an extension is adopted when it lowers BIC by 10 or more; docs/identifiability.md). "
+        f"(negative is better; {rule}; docs/identifiability.md). "
         "study.toml is the study with the adopted extensions in its [calibration] table: calibrate it to use them."
     )
     so.tables.append(
