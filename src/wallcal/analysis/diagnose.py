@@ -582,8 +582,8 @@ def diagnose(
     if effective_bias_prior:
         # the bias's prior weighed against the residuals' effective samples n (1 - phi) / (1 + phi), not all n of
         # them: with phi ~ 0.995 the n samples are worth about n / 400 independent ones, and counted as n they
-        # swamp the prior, so that the fit leaves any level error to the "bias" (docs/identifiability.md, "The
-        # error model")
+        # swamp the prior, so that the fit leaves any level error to the "bias" (docs/identifiability.md, "Real
+        # walls")
         from .posterior_likelihood import lag1
 
         ph0 = np.array(
@@ -664,20 +664,21 @@ def diagnose(
 
     vprep = prepare_window(study)
     validators: dict[tuple, Validator] = {}
-    vcache: dict[int, np.ndarray] = {}
+    vcache: dict[tuple, np.ndarray] = {}
 
     def held_out(f: _Fit) -> np.ndarray | None:
         """Held-out RMSE of every target at the fit's optimum (None without a validation window)."""
         if vprep is None:
             return None
-        if id(f) not in vcache:
+        ck = (tuple(f.space.names), f.x.tobytes())
+        if ck not in vcache:
             key = tuple(f.space.names)
             if key not in validators:
                 validators[key] = Validator(study, f.space, prepared=vprep)
-            vcache[id(f)] = validators[key].rmse(f.x[None])[0]
+            vcache[ck] = validators[key].rmse(f.x[None])[0]
             nonlocal evaluations
             evaluations += 1
-        return vcache[id(f)]
+        return vcache[ck]
 
     temps = [k for k, t in enumerate(space.targets) if study.sensor(t).quantity == "temperature"]
     refused: dict[tuple, str] = {}
@@ -703,9 +704,11 @@ def diagnose(
     singles = {e.name: score((e.name,), base) for e in exts}
 
     def rank(f: _Fit) -> float:
-        """The held-out score: mean over the temperature targets of held-out RMSE / accuracy."""
-        v = held_out(f)
-        return float(np.mean([v[k] / max(tau[k], 1e-12) for k in temps])) if temps else float(np.mean(v))
+        """The held-out score: mean over the temperature targets (all targets without one) of the held-out RMSE
+        relative to the study's structure's."""
+        v, v0 = held_out(f), held_out(base)
+        ks = temps or list(range(len(v)))
+        return float(np.mean([v[k] / max(v0[k], 1e-12) for k in ks]))
 
     current, adopted, tied, weak = forward_select(
         base,
