@@ -154,6 +154,18 @@ class PosteriorResult:
             )
         if self.structure.get("statement"):
             lines.append(("STRUCTURE REJECTED. " if self.structure["rejected"] else "") + self.structure["statement"])
+        if self.predictive is not None:
+            w = self.predictive.window
+            lines.append(
+                f"posterior predictive {w[0]} .. {w[1]}"
+                + (" (the held-out window)" if self.predicted_validation else "")
+                + f", {self.predictive.draws} draws: "
+                + "; ".join(
+                    f"{r['sensor']} RMSE {r['rmse']:.3g}, 95 % band covers {100 * r['coverage_95']:.0f} % "
+                    f"(width {r['band_width_95']:.3g})"
+                    for _, r in self.predictive.table.iterrows()
+                )
+            )
         if self.truth is not None:
             k, n = self.coverage()
             lines.append(f"truth (reference wall) inside the 95 % interval for {k} of {n} identified parameters")
