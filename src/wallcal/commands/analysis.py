@@ -402,6 +402,11 @@ def run_posterior(args) -> int:
     print(
         f"\nwrote {out}/posterior_summary.csv, posterior_correlation.csv, posterior_combinations.csv, "
         "posterior_checks.csv, non_uniqueness.csv, posterior.json, chain.npz, corner.png, trace.png"
+        + (
+            ""
+            if res.predictive is None
+            else ", predictive.csv, " + ("validation.csv" if res.predicted_validation else "predictive_summary.csv")
+        )
     )
     if res.predictive is not None:
         w = res.predictive.window
