@@ -203,7 +203,7 @@ def test_passys_face_offset(passys):
     with_offset = simulate(passys).metrics.set_index("signal")
     for s in ("T_4", "T_8", "T_12"):
         assert as_measured.loc[s, "rmse"] == pytest.approx(1.1, abs=0.06)
-        assert with_offset.loc[s, "rmse"] < 0.75
+        assert with_offset.loc[s, "rmse"] < 0.8  # the period without its held-out last 4 days
         assert abs(with_offset.loc[s, "mbe"]) < 0.2 < abs(as_measured.loc[s, "mbe"])
 
 
@@ -220,6 +220,7 @@ def test_passys_calibrates_within_authors_ranges(passys):
     assert 1000 <= cp <= 1600
     rm = res.metrics.pivot(index="signal", columns="case", values="rmse")
     assert rm.loc["FLX_8", "calibrated"] < 0.7 * rm.loc["FLX_8", "base"]
-    assert (rm.loc[["T_4", "T_8", "T_12"], "calibrated"] < 0.75).all()
+    # the fitted part: the period without its held-out last 4 days
+    assert (rm.loc[["T_4", "T_8", "T_12"], "calibrated"] < 0.8).all()
     m = res.metrics.set_index(["case", "signal"])["rmse"]
-    assert max(m["calibrated", s] for s in ("T_4", "T_8", "T_12")) < 0.75
+    assert max(m["calibrated", s] for s in ("T_4", "T_8", "T_12")) < 0.8

@@ -212,3 +212,28 @@ def rmse(measured, simulated, axis=-1):
     e = s - y
     ok = np.isfinite(e)
     return np.sqrt(np.where(ok, e, 0.0).__pow__(2).sum(axis=axis) / np.maximum(ok.sum(axis=axis), 1))
+
+
+#: Columns of ``validation.csv``: the held-out window's error of each sensor (rmse, mbe as in :func:`compute`)
+VALIDATION_COLUMNS = ("sensor", "rmse", "mbe", "n")
+
+
+def validation_table(names, measured: np.ndarray, simulated: np.ndarray) -> pd.DataFrame:
+    """RMSE, MBE (measured - simulated) and samples of each signal over a held-out window.
+
+    Parameters
+    ----------
+    names : sequence of str
+    measured, simulated : ndarray, shape (n_signals, n_times)
+        NaN pairs are skipped.
+
+    Returns
+    -------
+    DataFrame
+        Columns :data:`VALIDATION_COLUMNS`, one row per signal.
+    """
+    rows = []
+    for k, name in enumerate(names):
+        m = compute(measured[k], simulated[k])
+        rows.append({"sensor": str(name), "rmse": m["rmse"], "mbe": m["mbe"], "n": int(m["n"])})
+    return pd.DataFrame(rows, columns=list(VALIDATION_COLUMNS))

@@ -84,7 +84,7 @@ def figure_html(title: str, path: Path) -> str:
     )
 
 
-def moisture_figures(study, d: Path, result=None) -> list[tuple[str, Path]]:
+def moisture_figures(study, d: Path, result=None, engine: str | None = None) -> list[tuple[str, Path]]:
     """The moisture figures of a ``ham`` study: measured vs simulated relative humidity at each humidity
     sensor (``moisture_rh.png``) and the water content and RH profiles across the wall at six times of the
     comparison period (``moisture_profiles.png``, from the engine's cell states: ``profiles`` requested).
@@ -97,6 +97,8 @@ def moisture_figures(study, d: Path, result=None) -> list[tuple[str, Path]]:
         Where the PNG files go.
     result : SimulationResult, optional
         A run of the study with its engine; run again here when it holds no profiles.
+    engine : str, optional
+        The engine that ran ``result`` (and runs it again); default the study's.
     """
     import dataclasses
 
@@ -109,7 +111,7 @@ def moisture_figures(study, d: Path, result=None) -> list[tuple[str, Path]]:
 
     if result is None or result.profiles is None:
         study_p = dataclasses.replace(study, simulation=dataclasses.replace(study.simulation, profiles=True))
-        result = simulate(study_p, engine="ham")
+        result = simulate(study_p, engine=engine or study.simulation.engine)
     d = Path(d)
     figs = []
     rh = [s for s in study.sensors if s.quantity == "relative_humidity"]
@@ -154,6 +156,35 @@ def moisture_figures(study, d: Path, result=None) -> list[tuple[str, Path]]:
     return figs
 
 
+#: title of the calibration stage's table of the fitted period beside the held-out window
+HELD_OUT_TITLE = "RMSE per sensor: fitted period and held-out validation window (no fit saw it)"
+
+
+def held_out_table(fitted_rmse: pd.Series, validation: pd.DataFrame) -> pd.DataFrame:
+    """The fitted period's RMSE beside the held-out window's (``validation.csv``: rmse, mbe, n), one row per
+    sensor."""
+    v = validation.set_index("sensor")
+    out = pd.DataFrame({"fitted RMSE": fitted_rmse.reindex(v.index)})
+    out["held-out RMSE"] = v["rmse"]
+    out["held-out MBE"] = v["mbe"]
+    out["held-out n"] = v["n"].astype(int)
+    out.index.name = "sensor"
+    return out
+
+
+def _held_out_summary(study, stage) -> str | None:
+    """The summary's sentence on the held-out window, from the calibration stage's table (None without one)."""
+    t = next((df for title, df, _ in stage.tables if title == HELD_OUT_TITLE), None)
+    if t is None or study.period.validation is None:
+        return None
+    vs, ve = study.period.validation
+    parts = "; ".join(f"{sig} {r['fitted RMSE']:.3f} -> {r['held-out RMSE']:.3f}" for sig, r in t.iterrows())
+    return (
+        f"<b>Held-out window</b> {html.escape(str(vs))} to {html.escape(str(ve))} (no fit saw it). RMSE fitted "
+        f"period -&gt; held-out window: {html.escape(parts)}."
+    )
+
+
 def _summary(study, outputs) -> str:
     by = {o.name: o for o in outputs}
     items = []
@@ -167,7 +198,12 @@ def _summary(study, outputs) -> str:
         items.append(
             f"<b>Measured.</b> {html.escape(study.wall.name or 'The wall')}: {len(study.wall.layers)} layers, "
             f"{study.wall.thickness * 100:.1f} cm; probes {html.escape(rng)}; period {study.period.start} to "
-            f"{study.period.end}."
+            f"{study.period.end}"
+            + (
+                f", of which {study.period.validation[0]} to {study.period.validation[1]} held out for validation."
+                if study.period.validation is not None
+                else "."
+            )
         )
     e = by.get("engines")
     if e and e.status == "ok" and e.text:
@@ -184,6 +220,9 @@ def _summary(study, outputs) -> str:
                 + (f" (floor {floor:.3f})" if isinstance(floor, float) and not math.isnan(floor) else "")
             )
         items.append("<b>RMSE before -> after.</b> " + html.escape("; ".join(parts)) + ".")
+        held = _held_out_summary(study, c)
+        if held:
+            items.append(held)
     g = by.get("diagnose")
     if g and g.status == "ok" and g.text:
         items.append("<b>Model structure.</b> " + html.escape(g.text[0]))

@@ -267,6 +267,11 @@ def _prepare(study: Study, engine: str, dt: float, C: float, node_rule: str, mea
     in_period = (frame.index >= start) & (frame.index <= end)
     times = frame.index[in_period]
     measured = frame.loc[in_period, [s.name for s in study.sensors]]
+    if p.validation is not None:  # the held-out window: no fitting (nor the period's metrics) sees it
+        held = (times >= pd.Timestamp(p.validation_start)) & (times <= pd.Timestamp(p.validation_end))
+        if held.any():
+            measured = measured.copy()
+            measured.loc[held] = np.nan
     positions = (times - t0).total_seconds().to_numpy() / dt
     probes = tuple(s.name for s in study.sensors if s.quantity == "temperature")
     moisture = _moisture_input(study, frame, t0, ext, intr) if study.has_moisture else None

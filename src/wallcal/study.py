@@ -145,11 +145,25 @@ class DataSpec:
 
 @dataclass(frozen=True)
 class PeriodSpec:
-    """Comparison period (both ends included) and the start of the warm-up."""
+    """Comparison period (both ends included), the start of the warm-up and the held-out validation window.
+
+    ``validation_start`` .. ``validation_end`` (both included, or both None) is a window no fitting sees: inside
+    ``[start, end]`` the fitting uses the rest of the period, after ``end`` it is simulated on from the period
+    (:mod:`wallcal.validation`).
+    """
 
     warmup_start: _dt.datetime | None
     start: _dt.datetime
     end: _dt.datetime
+    validation_start: _dt.datetime | None = None
+    validation_end: _dt.datetime | None = None
+
+    @property
+    def validation(self) -> tuple[_dt.datetime, _dt.datetime] | None:
+        """(validation_start, validation_end), or None without a validation window."""
+        if self.validation_start is None or self.validation_end is None:
+            return None
+        return self.validation_start, self.validation_end
 
 
 @dataclass(frozen=True)
@@ -259,7 +273,7 @@ SENSOR_KEYS = (
     "weight",
     "offset",
 )
-PERIOD_KEYS = ("warmup_start", "start", "end")
+PERIOD_KEYS = ("warmup_start", "start", "end", "validation_start", "validation_end")
 SIMULATION_KEYS = (
     "engine",
     "time_step",
@@ -562,8 +576,25 @@ def parse_study(raw: dict, base_dir: Path | None = None, source: str | None = No
             problems.add(
                 "period.warmup_start", f"must not be after period.start ({start.isoformat()}), got {warm.isoformat()}"
             )
+        vs, ve = pt.datetime("validation_start", None), pt.datetime("validation_end", None)
+        if (vs is None) != (ve is None):
+            problems.add(
+                "period.validation_end" if ve is None else "period.validation_start",
+                "give both validation_start and validation_end (the held-out window), or neither",
+            )
+        elif vs and ve and start and end:
+            if not ve > vs:
+                problems.add(
+                    "period.validation_end", f"must be after validation_start ({vs.isoformat()}), got {ve.isoformat()}"
+                )
+            elif vs <= start:
+                problems.add(
+                    "period.validation_start",
+                    f"must be after period.start ({start.isoformat()}): the fitting needs the start of the period, "
+                    f"got {vs.isoformat()}",
+                )
         if start and end:
-            period = PeriodSpec(warmup_start=warm, start=start, end=end)
+            period = PeriodSpec(warmup_start=warm, start=start, end=end, validation_start=vs, validation_end=ve)
 
     smt = top.table("simulation", SIMULATION_KEYS, required=False)
     sim = SimulationSpec()

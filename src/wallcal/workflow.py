@@ -135,12 +135,15 @@ def _stage_engines(ctx: RunContext, d: Path, so: StageOutput):
     if why:
         so.text.append(f"The base case ran in {', '.join(ctx.engines)} only: {why}.")
     ctx.results["comparison"] = comp
+    from .engines import engine_class
     from .report import moisture_figures
+    from .study import QUANTITY_UNITS
 
-    if ctx.study.has_moisture and "ham" in comp.results:
-        so.figures += moisture_figures(ctx.study, d, comp.results["ham"])
+    moist = next((n for n in comp.results if engine_class(n).capabilities.moisture), None)
+    if ctx.study.has_moisture and moist is not None:
+        so.figures += moisture_figures(ctx.study, d, comp.results[moist], engine=moist)
     base = comp.results[ctx.engines[0]].metrics
-    units = {s.name: ("W/m2" if s.quantity == "heat_flux" else "degC") for s in ctx.study.sensors}
+    units = {s.name: QUANTITY_UNITS[s.quantity] for s in ctx.study.sensors}
     so.text.insert(
         0,
         f"RMSE of the base case ({ctx.engines[0]}): "
@@ -235,6 +238,13 @@ def _stage_calibration(ctx: RunContext, d: Path, so: StageOutput):
     if res.floors:
         m["noise floor (reference wall)"] = pd.Series(res.floors)
     so.tables.append(("RMSE per sensor before and after calibration", m, ()))
+    from .report import HELD_OUT_TITLE, held_out_table
+    from .validation import read as read_validation
+
+    held = read_validation(d)  # the held-out window ([period] validation_start/end), when the study has one
+    if held is not None:
+        so.files.append("validation.csv")
+        so.tables.append((HELD_OUT_TITLE, held_out_table(m["calibrated"], held), ()))
     so.figures.append(("Measured vs base case vs calibrated (Fig. 5)", d / "fit.png"))
     so.figures.append(("Convergence of the calibration", d / "convergence.png"))
     so.text += [f"Note: {n}" for n in res.notes]
@@ -254,9 +264,15 @@ def _stage_diagnose(ctx: RunContext, d: Path, so: StageOutput):
     so.text += res.summary().splitlines()
     if ctx.quick:
         so.text.append("Quick run: at most 3 Jacobians per candidate; one extension adopted at most.")
+    rule = (
+        "with the held-out window, an extension is adopted when its values are plausible and it lowers the held-out "
+        "RMSE of every temperature target (columns 'validation RMSE')"
+        if ctx.study.period.validation is not None
+        else "an extension is adopted when it lowers BIC by 10 or more and its values are plausible"
+    )
     so.text.append(
         f"{CRITERION}: the change of BIC on the AR(1) likelihood of the residuals against the study's structure "
-        "(negative is better; an extension is adopted when it lowers BIC by 10 or more; docs/identifiability.md). "
+        f"(negative is better; {rule}; docs/identifiability.md). "
         "study.toml is the study with the adopted extensions in its [calibration] table: calibrate it to use them."
     )
     so.tables.append(

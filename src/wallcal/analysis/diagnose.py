@@ -61,18 +61,32 @@ from .diagnose_adoption import (  # noqa: F401
     held_at_bounds,
 )
 from .diagnose_candidates import (  # noqa: F401
+    COEFFICIENT_PLAUSIBLE,
     COEFFICIENT_RANGE,
     CONTACT_BOUNDS,
+    CONTACT_PLAUSIBLE,
     DEPTH_RANGE,
     INSULATION_LAMBDA,
     OFFSET_ACCURACIES,
+    OFFSET_PLAUSIBLE_ACCURACIES,
     OFFSET_SPREAD,
+    PROBE_TOLERANCE,
     Extension,
+    plausibility,
     propose,
     residual_analysis,
     unit_label,
 )
-from .diagnose_scoring import FTOL, MAX_JACOBIANS, ar1_loglike, ar1_profile, debiased_residuals, refine  # noqa: F401
+from .diagnose_scoring import (  # noqa: F401
+    FTOL,
+    MAX_JACOBIANS,
+    SCORE_RESOLUTION,
+    ar1_loglike,
+    ar1_profile,
+    block_means,
+    debiased_residuals,
+    refine,
+)
 
 __all__ = [
     "ADOPT_DELTA",
@@ -139,6 +153,8 @@ class Diagnosis:
     seconds: float = 0.0
     raw: dict = field(default_factory=dict, repr=False)
     notes: list = field(default_factory=list)
+    validation: pd.DataFrame | None = None  # validation.csv: the adopted structure on the held-out window
+    validation_base: dict = field(default_factory=dict)  # target -> held-out RMSE of the study's structure
 
     # ------------------------------------------------------------------ words
     def summary(self) -> str:
@@ -151,10 +167,27 @@ class Diagnosis:
             row = c[c["adopted"]].iloc[0]
             rm = ", ".join(f"{t} {self.rmse_base[t]:.3f} -> {row[f'RMSE {t}']:.3f} {units[t]}" for t in self.rmse_base)
             vals = ", ".join(f"{n} = {self.x[n]:.4g}" for n in self.adopted)
+            if self.validation is not None:
+                held = ", ".join(
+                    f"{t} {self.validation_base[t]:.3f} -> {row[f'validation RMSE {t}']:.3f} {units[t]}"
+                    for t in self.rmse_base
+                )
+                lines.append(
+                    f"The held-out window supports extending the calibration with {' + '.join(self.adopted)}: "
+                    f"held-out RMSE {held} (every temperature target lower, every value plausible; BIC change "
+                    f"{row[CRITERION]:+.1f}, adoption refuses a rise of {ADOPT_DELTA:g} or more). In-sample RMSE "
+                    f"{rm}. Recalibrated values: {vals}."
+                )
+            else:
+                lines.append(
+                    f"The data support extending the calibration with {' + '.join(self.adopted)}: BIC falls by "
+                    f"{-row[CRITERION]:.1f} against the study's structure (adoption needs a fall of at least "
+                    f"{ADOPT_DELTA:g}). RMSE {rm}. Recalibrated values: {vals}."
+                )
+        elif self.validation is not None:
             lines.append(
-                f"The data support extending the calibration with {' + '.join(self.adopted)}: BIC falls by "
-                f"{-row[CRITERION]:.1f} against the study's structure (adoption needs a fall of at least "
-                f"{ADOPT_DELTA:g}). RMSE {rm}. Recalibrated values: {vals}."
+                "The data support the study's structure: no plausible candidate extension lowers the held-out RMSE "
+                "of every temperature target."
             )
         else:
             lines.append(
@@ -222,7 +255,9 @@ class Diagnosis:
         self.residuals.to_csv(d / "residuals.csv", float_format="%.6g")
         (d / "diagnose.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
         load_study(d / "study.toml")  # the written study must load (relative paths resolve)
-        return ["candidates.csv", "study.toml", "residuals.csv", "diagnose.json"]
+        from ..validation import write as write_validation
+
+        return ["candidates.csv", "study.toml", "residuals.csv", "diagnose.json"] + write_validation(self.validation, d)
 
     def write(self, out_dir) -> Path:
         """Write every output atomically into ``out_dir`` (it appears only when complete)."""
@@ -410,6 +445,9 @@ def diagnose(
     max_jacobians: int = MAX_JACOBIANS,
     max_adopted: int = MAX_ADOPTED,
     kinds: tuple[str, ...] | None = None,
+    score_resolution: float | None = None,
+    effective_bias_prior: bool = True,
+    selection: str = "held-out",
 ) -> Diagnosis:
     """Which extensions of the calibration's structure the data support.
 
@@ -430,7 +468,18 @@ def diagnose(
         Most extensions adopted together.
     kinds : tuple of str, optional
         Candidate kinds to consider (default all: depth, contact_resistance,
-        conductivity_temperature_coefficient, offset).
+        conductivity_temperature_coefficient, offset, response_time, face_offset).
+    score_resolution : float or None
+        Score the criterion on the residuals' means over blocks of this length [s] (e.g. 3600: hourly means;
+        default None: every sample).
+    effective_bias_prior : bool
+        Weigh each target's bias prior in the recalibrations against the residuals' effective samples
+        n (1 - phi) / (1 + phi) (default), not all n of them (False: the bias absorbs any level error).
+    selection : {"held-out", "criterion"}
+        ``"held-out"`` (default): adopt only plausible extensions, and with a validation window only those that
+        lower the held-out RMSE of every temperature target (the held-out evidence decides); ``"criterion"``: the
+        in-sample criterion alone, as before the validation window existed (for comparison; the held-out RMSEs are
+        still reported).
 
     Returns
     -------
@@ -455,11 +504,15 @@ def diagnose(
         "conductivity_temperature_coefficient",
         "moisture_conductivity_coefficient",
         "offset",
+        "response_time",
+        "face_offset",
     )
     if kinds is not None:
         bad = [k for k in kinds if k not in all_kinds]
         if bad:
             raise StudyError([f"kinds: unknown extension kind(s) {', '.join(map(repr, bad))}; valid: {all_kinds}"])
+    if selection not in ("held-out", "criterion"):
+        raise StudyError([f"selection: {selection!r} is not one of 'held-out', 'criterion'"])
     say = _Say(progress)
     prepared = prepared or prepare(study, needs=BATCH_NEEDS, purpose="the structure diagnosis")
     x0, origin = start_point(study, space, start, progress)
@@ -488,7 +541,7 @@ def diagnose(
         for x_start, ll_before in starts:
             xs = np.array([x_start.get(n, p.base) for n, p in zip(sp.names, sp.parameters, strict=True)])
             xs = np.clip(xs, sp.lower, sp.upper)
-            ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau)[0] if ll_before is not None else 0.0
+            ll0 = ar1_profile(ev.errors(xs[None])[0], ev.mask, tau, block)[0] if ll_before is not None else 0.0
             # a probe depth starting on a contact's double node is also fitted from just off it (node_starts)
             for s in node_starts(sp, ev.inp.wall, ev.inp.options.contact_layers, xs):
                 u, n_runs = refine(
@@ -500,7 +553,7 @@ def diagnose(
                 x = sp.from_unit(u)
                 E = ev.errors(x[None])[0]
                 evaluations += n_runs + 2
-                ll, n, _, _ = ar1_profile(E, ev.mask, tau)
+                ll, n, _, _ = ar1_profile(E, ev.mask, tau, block)
                 if ll_before is not None:
                     ll = ll_before + (ll - ll0)
                 if best is None or ll > best[0]:
@@ -519,15 +572,35 @@ def diagnose(
         ]
     )
     tau = np.where(np.isfinite(tau) & (tau > 0), tau, 0.0)
+    # the criterion's resolution: hourly means of the residuals (SCORE_RESOLUTION), whole samples
+    block = 1
+    if score_resolution and len(prepared.times) > 1:
+        step = float(np.median((prepared.times[1:] - prepared.times[:-1]).total_seconds()))  # sampling [s]
+        block = max(1, int(round(score_resolution / step)))
     E0 = ev_study.errors(x0[None])[0]
     noise = np.array([float(np.std(E0[k][ev_study.mask[k]])) for k in range(len(tau))])
     noise = np.where(np.isfinite(noise) & (noise > 0), noise, 1.0)
+    if effective_bias_prior:
+        # the bias's prior weighed against the residuals' effective samples n (1 - phi) / (1 + phi), not all n of
+        # them: with phi ~ 0.995 the n samples are worth about n / 400 independent ones, and counted as n they
+        # swamp the prior, so that the fit leaves any level error to the "bias" (docs/identifiability.md, "Real
+        # walls")
+        from .posterior_likelihood import lag1
+
+        ph0 = np.array(
+            [
+                lag1(np.where(ev_study.mask[k], E0[k] - E0[k][ev_study.mask[k]].mean(), 0.0), ev_study.mask[k])
+                for k in range(len(tau))
+            ]
+        )
+        ph0 = np.clip(np.nan_to_num(ph0), 0.0, 0.995)
+        noise = noise * np.sqrt((1.0 + ph0) / (1.0 - ph0))
     say("recalibrating the study's structure (warm start)", force=True)
     # the start is the optimum of the study's objective, which counts a sensor's bias as misfit: the base structure
     # is re-polished to convergence under the criterion's error model, so that no candidate gains from that alone
     base = fit([], (), [(dict(zip(space.names, x0, strict=True)), None)], jacobians=BASE_JACOBIANS * max_jacobians)
     ev0 = evaluator(space)
-    _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask, tau)
+    _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask, tau, block)
     resid = residual_analysis(ev0, base.x, prepared.times)
     y = {t: ev0.y[k][ev0.mask[k]] for k, t in enumerate(space.targets)}
     exts = [e for e in propose(study, space, resid, y) if kinds is None or e.kind in kinds]
@@ -587,20 +660,91 @@ def diagnose(
         """The study's own parameters at a bound of their prior box at the fit's optimum."""
         return held_at_bounds(f.space, f.x, own)
 
+    # held-out validation ([period] validation_start/end): every fit is scored on the window no fit sees
+    from ..validation import Validator, prepare_window
+
+    vprep = prepare_window(study)
+    validators: dict[tuple, Validator] = {}
+    vcache: dict[tuple, np.ndarray] = {}
+
+    def held_out(f: _Fit) -> np.ndarray | None:
+        """Held-out RMSE of every target at the fit's optimum (None without a validation window)."""
+        if vprep is None:
+            return None
+        ck = (tuple(f.space.names), f.x.tobytes())
+        if ck not in vcache:
+            key = tuple(f.space.names)
+            if key not in validators:
+                validators[key] = Validator(study, f.space, prepared=vprep)
+            vcache[ck] = validators[key].rmse(f.x[None])[0]
+            nonlocal evaluations
+            evaluations += 1
+        return vcache[ck]
+
+    temps = [k for k, t in enumerate(space.targets) if study.sensor(t).quantity == "temperature"]
+    refused: dict[tuple, str] = {}
+
+    def implausible(f: _Fit) -> list[str]:
+        return plausibility(study, f.space, f.x, set(f.names), BOUND_BAND)
+
+    def accept(f: _Fit, current: _Fit) -> bool:
+        """Plausible values, off their bounds, and a lower held-out RMSE of every temperature target."""
+        why = implausible(f)
+        v, vc = held_out(f), held_out(current)
+        if v is not None:
+            worse = [space.targets[k] for k in temps if not v[k] < vc[k]]
+            if worse:
+                why.append(
+                    "held-out RMSE not lower for "
+                    + ", ".join(f"{space.targets[k]} ({vc[k]:.3f} -> {v[k]:.3f})" for k in temps if not v[k] < vc[k])
+                )
+        if why:
+            refused.setdefault(tuple(sorted(f.names)), "; ".join(why))
+        return not why
+
     singles = {e.name: score((e.name,), base) for e in exts}
-    current, adopted, tied, weak = forward_select(base, singles, score, polish, compatible, max_adopted, held)
+
+    def rank(f: _Fit) -> float:
+        """The held-out score: mean over the temperature targets (all targets without one) of the held-out RMSE
+        relative to the study's structure's."""
+        v, v0 = held_out(f), held_out(base)
+        ks = temps or list(range(len(v)))
+        return float(np.mean([v[k] / max(v0[k], 1e-12) for k in ks]))
+
+    current, adopted, tied, weak = forward_select(
+        base,
+        singles,
+        score,
+        polish,
+        compatible,
+        max_adopted,
+        held,
+        accept=accept if selection == "held-out" else None,
+        rank=rank if vprep is not None and selection == "held-out" else None,
+    )
     rows = []
     for key, f in fits.items():
+        vf = held_out(f)
         rows.append(
             {
                 "extension": " + ".join(f.names),
                 CRITERION: f.bic - base.bic,
                 **{f"RMSE {t}": float(r) for t, r in zip(space.targets, f.rmse, strict=True)},
+                **{
+                    f"validation RMSE {t}": float(vf[k]) if vf is not None else np.nan
+                    for k, t in enumerate(space.targets)
+                },
+                "plausible": not implausible(f),
                 "adopted": bool(adopted) and key == tuple(sorted(adopted)),
                 "held_at_bounds": ", ".join(sorted(held(f))),
             }
         )
-    cols = ["extension", CRITERION] + [f"RMSE {t}" for t in space.targets] + ["adopted", "held_at_bounds"]
+    cols = (
+        ["extension", CRITERION]
+        + [f"RMSE {t}" for t in space.targets]
+        + [f"validation RMSE {t}" for t in space.targets]
+        + ["plausible", "adopted", "held_at_bounds"]
+    )
     cand = pd.DataFrame(rows, columns=cols)
     if len(cand):
         cand["n"] = cand["extension"].str.count(r" \+ ")
@@ -616,6 +760,19 @@ def diagnose(
         + (", ".join(adopted) if adopted else "none")
     )
     notes = [f"Started from {origin}."]
+    vtable = None
+    if vprep is not None:
+        vb = held_out(base)
+        notes.append(
+            f"Held-out window {study.period.validation_start} .. {study.period.validation_end} (no fit saw it): "
+            "RMSE of the study's structure "
+            + ", ".join(f"{t} {v:.3f} {unit_label(study, t)}" for t, v in zip(space.targets, vb, strict=True))
+            + "."
+        )
+        vtable = Validator(study, current.space, prepared=vprep).table(current.x)
+    for names, why in refused.items():
+        if names != tuple(sorted(adopted)):
+            notes.append(f"Not adopted: {' + '.join(names)}: {why}.")
     for names, cost in tied:
         notes.append(
             f"{' and '.join(names)} explain the misfit equally well (criterion within {TIE_DELTA:g}): the data cannot "
@@ -653,4 +810,6 @@ def diagnose(
         seconds=seconds,
         raw=raw,
         notes=notes,
+        validation=vtable,
+        validation_base=dict(zip(space.targets, map(float, held_out(base)), strict=True)) if vprep is not None else {},
     )

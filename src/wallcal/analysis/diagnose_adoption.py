@@ -19,6 +19,9 @@ TIE_DELTA = 2.0
 POLISH_MARGIN = 25.0
 #: after the single candidates, each forward step tries the best few useful ones only
 MAX_TRIALS = 3
+#: on held-out evidence, each forward step tries at most this many of the promising extensions (those whose own fit
+#: predicts the held-out window better than the base structure), best first
+HELD_OUT_TRIALS = 6
 #: most extensions adopted together
 MAX_ADOPTED = 4
 
@@ -30,7 +33,17 @@ def held_at_bounds(space, x, names=None, band: float = BOUND_BAND) -> frozenset:
     return frozenset(n for n, side in zip(space.names, sides, strict=True) if side and (names is None or n in names))
 
 
-def forward_select(base, singles: dict, score, polish, compatible, max_adopted: int = MAX_ADOPTED, held=None):
+def forward_select(
+    base,
+    singles: dict,
+    score,
+    polish,
+    compatible,
+    max_adopted: int = MAX_ADOPTED,
+    held=None,
+    accept=None,
+    rank=None,
+):
     """Forward selection of extensions by the criterion (the ``bic`` of each fit; lower is better).
 
     The best single candidate is adopted when it lowers the criterion by at least :data:`ADOPT_DELTA`; then the
@@ -62,6 +75,16 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
     held : callable, optional
         ``held(fit) -> frozenset`` of the study's parameters held at a bound at the fit's optimum. None: the
         strong threshold only.
+    accept : callable, optional
+        ``accept(fit, current) -> bool``: whether a fit may replace the structure adopted so far beyond its
+        criterion (``diagnose``: its new values inside their plausible ranges and off their bounds, and a lower
+        held-out RMSE of every temperature target). A step adopts only from the fits it accepts.
+    rank : callable, optional
+        ``rank(fit) -> float``, the held-out score (lower is better) when the study has a validation window. The
+        held-out evidence then decides: every candidate is tried (the in-sample criterion may be blind to it),
+        a step adopts the accepted fit of the lowest rank, provided the criterion does not reject it strongly
+        (it rises by less than :data:`ADOPT_DELTA`); each later step tries the :data:`HELD_OUT_TRIALS` best
+        promising extensions (their own fit predicts the window better than ``base``); no weak rule and no ties.
 
     Returns
     -------
@@ -70,6 +93,8 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         alone), and the steps taken on the weaker threshold as (names adopted, criterion change of the step,
         parameters held before, parameters held after).
     """
+    if rank is not None:
+        return _select_held_out(base, singles, score, compatible, max_adopted, accept, rank)
     useful = [n for n, f in sorted(singles.items(), key=lambda kv: kv[1].bic) if f.bic < base.bic]
     current = base
     adopted: tuple = ()
@@ -87,6 +112,10 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         # link moves slowly in a few Jacobians, and the ranking of near-equals must not depend on that
         first = min(f.bic for f in trials)
         trials = [polish(f) if f.bic <= first + POLISH_MARGIN else f for f in trials]
+        if accept is not None:
+            trials = [f for f in trials if accept(f, current)]
+            if not trials:
+                break
         best = min(trials, key=lambda f: f.bic)
         threshold = ADOPT_DELTA
         before = frozenset() if held is None else held(current)
@@ -112,7 +141,8 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         ties = [n for n in dict.fromkeys(ties) if compatible(tuple(best.names) + (n,))]
         if ties and len(best.names) + len(ties) <= max_adopted:
             both = score(tuple(best.names) + tuple(ties), best)
-            if both.bic <= current.bic - threshold and (threshold == ADOPT_DELTA or before - held(both)):
+            ok = accept is None or accept(both, current)
+            if ok and both.bic <= current.bic - threshold and (threshold == ADOPT_DELTA or before - held(both)):
                 tied.append((new + ties, both.bic - best.bic))
                 new = new + ties
                 best = both
@@ -121,3 +151,24 @@ def forward_select(base, singles: dict, score, polish, compatible, max_adopted: 
         current = best
         adopted = tuple(best.names)
     return current, adopted, tied, weak
+
+
+def _select_held_out(base, singles, score, compatible, max_adopted, accept, rank):
+    """Forward selection on held-out evidence (see :func:`forward_select`, ``rank``)."""
+    order = [n for n, _ in sorted(singles.items(), key=lambda kv: rank(kv[1]))]
+    # worth combining: the extensions whose own fit predicts the held-out window better than the base structure
+    promising = [n for n in order if rank(singles[n]) < rank(base)]
+    current = base
+    adopted: tuple = ()
+    while len(adopted) < max_adopted:
+        if not adopted:
+            trials = [singles[n] for n in order]
+        else:
+            pool = [n for n in promising if n not in adopted and compatible(adopted + (n,))][:HELD_OUT_TRIALS]
+            trials = [score(adopted + (n,), current) for n in pool]
+        trials = [f for f in trials if f.bic < current.bic + ADOPT_DELTA and (accept is None or accept(f, current))]
+        if not trials:
+            break
+        current = min(trials, key=rank)
+        adopted = tuple(current.names)
+    return current, adopted, [], []

@@ -25,6 +25,28 @@ MOISTURE_COEFFICIENT_RANGE = 4.0
 #: OFFSET_SPREAD times the standard deviation of its measured signal
 OFFSET_ACCURACIES = 2.0
 OFFSET_SPREAD = 0.25
+#: half-range of the candidate offset of both face sensors: this many times the temperature targets' largest
+#: stated accuracy (the study states none for its boundary sensors; they are read by sensors of the same kind)
+FACE_OFFSET_ACCURACIES = 3.0
+#: box of a candidate probe response time (first-order lag) [s]
+RESPONSE_RANGE = (0.0, 3600.0)
+
+# ---------------------------------------------------------------------------- plausible ranges
+# An extension is adopted only when its fitted value lies inside its plausible range and off the bounds of its
+# candidate box (``plausibility``); docs/identifiability.md, "Real walls".
+#: a probe's placement tolerance: most distance from its nominal depth [m] (the candidate's box: a depth is
+#: plausible inside it and off its bounds)
+PROBE_TOLERANCE = DEPTH_RANGE
+#: ISO 10456:2007 Table 4 gives temperature conversion coefficients of about 0.003 to 0.0056 1/K for insulation
+#: materials (0.0046 mineral wool); plausible up to this, about 1.5 x the largest, for the fit's own uncertainty [1/K]
+COEFFICIENT_PLAUSIBLE = 0.008
+#: a contact resistance between two building layers: up to that of a thin unventilated air gap [m2K/W]
+CONTACT_PLAUSIBLE = 0.2
+#: a sensor offset (of a target, or of both faces): at most this many times the sensor's stated accuracy
+OFFSET_PLAUSIBLE_ACCURACIES = 2.0
+#: a probe's first-order response time: a sheathed probe in its hole, or a sensor under tape, responds within
+#: minutes; up to this [s]
+RESPONSE_PLAUSIBLE = 1800.0
 
 
 # ============================================================================ residual analysis
@@ -101,7 +123,8 @@ class Extension:
         Its parameter name, e.g. ``"depth[T3A]"``.
     kind : str
         ``depth``, ``contact_resistance``, ``conductivity_temperature_coefficient``,
-        ``moisture_conductivity_coefficient`` (a moisture study's lambda(w)) or ``offset``.
+        ``moisture_conductivity_coefficient`` (a moisture study's lambda(w)), ``offset``, ``response_time`` or
+        ``face_offset``.
     table : dict
         Its ``[[calibration.parameters]]`` entry as written into the extended study.
     reason : str
@@ -281,4 +304,81 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
                 why(t, f"a constant offset of sensor {t}"),
             )
         )
+    for t in probes:
+        name = f"response_time[{t}]"
+        if name in have:
+            continue
+        out.append(
+            Extension(
+                name,
+                "response_time",
+                {"sensor": t, "property": "response_time", "bounds": list(RESPONSE_RANGE)},
+                why(t, f"probe {t} reading its temperature through a first-order lag"),
+            )
+        )
+    acc = face_accuracy(study, space)
+    faces = (study.exterior.type, study.interior.type)
+    if acc > 0 and "heat_flux" not in faces and "offset[faces]" not in have:
+        half = float(f"{FACE_OFFSET_ACCURACIES * acc:.3g}")
+        lead = probes[0] if probes else None
+        out.append(
+            Extension(
+                "offset[faces]",
+                "face_offset",
+                {"sensor": "faces", "property": "offset", "bounds": [-half, half]},
+                why(lead, "one constant offset of both boundary (face) sensors: every temperature moves by it")
+                if lead
+                else "one constant offset of both boundary (face) sensors",
+            )
+        )
+    return out
+
+
+def face_accuracy(study, space) -> float:
+    """The largest stated accuracy of the temperature targets [K] (0 without any): the face sensors' assumed one."""
+    accs = [
+        study.sensor(t).accuracy
+        for t in space.targets
+        if study.sensor(t).quantity == "temperature" and study.sensor(t).accuracy
+    ]
+    return float(max(accs)) if accs else 0.0
+
+
+def plausible_range(study, space, p) -> tuple[float, float] | None:
+    """The documented plausible range [SI] of an extension's parameter ``p`` (a Parameter), or None (any value in
+    its box is plausible: the study's own parameters)."""
+    if p.property == "depth":
+        d = study.wall.probe(p.probe).depth
+        return d - PROBE_TOLERANCE, d + PROBE_TOLERANCE
+    if p.property == "conductivity_temperature_coefficient":
+        return 0.0, COEFFICIENT_PLAUSIBLE
+    if p.property == "contact_resistance":
+        return 0.0, CONTACT_PLAUSIBLE
+    if p.property == "response_time":
+        return 0.0, RESPONSE_PLAUSIBLE
+    if p.property == "offset":
+        if p.shifts:
+            acc = face_accuracy(study, space)
+        else:
+            acc = study.sensor(p.sensor).accuracy  # a relative accuracy is a gain: only the bound check
+        if not acc or not np.isfinite(acc):
+            return None
+        return -OFFSET_PLAUSIBLE_ACCURACIES * acc, OFFSET_PLAUSIBLE_ACCURACIES * acc
+    return None
+
+
+def plausibility(study, space, x, names, band: float) -> list[str]:
+    """Why the values of the extensions ``names`` at ``x`` [SI] are not plausible ([] when they all are): outside
+    their documented range (:func:`plausible_range`), or within ``band`` of their range from a bound of the
+    candidate's box (a value at a bound is never adopted silently)."""
+    out = []
+    sides = space.bound_sides(x, band)
+    for p, v, side in zip(space.parameters, np.asarray(x, dtype=float), sides, strict=True):
+        if p.name not in names:
+            continue
+        rng = plausible_range(study, space, p)
+        if side:
+            out.append(f"{p.name} = {v:.4g} at the {side} bound of its box")
+        elif rng is not None and not rng[0] - 1e-12 <= v <= rng[1] + 1e-12:
+            out.append(f"{p.name} = {v:.4g} outside its plausible range {rng[0]:.4g} .. {rng[1]:.4g}")
     return out

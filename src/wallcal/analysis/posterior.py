@@ -226,6 +226,8 @@ def posterior(
     missing_extensions=(),
     effective_samples: float | None = None,
     max_steps: int | None = None,
+    predict=None,
+    predictive_draws: int | None = None,
 ) -> PosteriorResult:
     """Sample the posterior of the calibration parameters.
 
@@ -270,6 +272,13 @@ def posterior(
         Effective samples an adequate chain holds (default :data:`DEFAULT_EFFECTIVE_SAMPLES`).
     max_steps : int, optional
         Longest default chain (when ``steps`` is not given) [steps] (default :data:`DEFAULT_MAX_STEPS`).
+    predict : (start, end), optional
+        Predict this period of the study's data from the draws plus the error model
+        (:func:`~wallcal.analysis.posterior_predictive.predictive`; ``predictive.csv``); default the study's
+        validation window, if any (then also ``validation.csv`` with ``coverage_95`` and ``band_width_95``).
+    predictive_draws : int, optional
+        Posterior draws simulated for the predictive band (default
+        :data:`~wallcal.analysis.posterior_predictive.PREDICTIVE_DRAWS`).
 
     Returns
     -------
@@ -434,6 +443,21 @@ def posterior(
         diagnostics=final,
     )
     res.simulations = simulated if not resume else None  # a resumed chain's earlier part is not counted
+    from .posterior_predictive import PREDICTIVE_DRAWS, predictive
+
+    res.predictive = predictive(
+        study,
+        space,
+        res.samples,
+        ev,
+        sig,
+        ph,
+        tau,
+        window=predict,
+        draws=predictive_draws or PREDICTIVE_DRAWS,
+        seed=seed,
+    )
+    res.predicted_validation = predict is None and res.predictive is not None
     if prepared.note:
         res.warnings.insert(0, prepared.note)
     if status == "complete" and ckpt is not None and ckpt.exists():

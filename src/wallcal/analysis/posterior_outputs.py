@@ -77,6 +77,10 @@ class PosteriorResult:
     seconds: float
     status: str = "complete"
     warnings: list = field(default_factory=list)
+    #: the posterior predictive band (:class:`~wallcal.analysis.posterior_predictive.Predictive`) or None
+    predictive: object = None
+    #: whether ``predictive`` is of the study's validation window (written as validation.csv)
+    predicted_validation: bool = False
     truth: np.ndarray | None = None
     tempering: dict = field(default_factory=lambda: {"kind": "none", "weight": 1.0})
     checks: pd.DataFrame = field(default_factory=pd.DataFrame)
@@ -150,6 +154,18 @@ class PosteriorResult:
             )
         if self.structure.get("statement"):
             lines.append(("STRUCTURE REJECTED. " if self.structure["rejected"] else "") + self.structure["statement"])
+        if self.predictive is not None:
+            w = self.predictive.window
+            lines.append(
+                f"posterior predictive {w[0]} .. {w[1]}"
+                + (" (the held-out window)" if self.predicted_validation else "")
+                + f", {self.predictive.draws} draws: "
+                + "; ".join(
+                    f"{r['sensor']} RMSE {r['rmse']:.3g}, 95 % band covers {100 * r['coverage_95']:.0f} % "
+                    f"(width {r['band_width_95']:.3g})"
+                    for _, r in self.predictive.table.iterrows()
+                )
+            )
         if self.truth is not None:
             k, n = self.coverage()
             lines.append(f"truth (reference wall) inside the 95 % interval for {k} of {n} identified parameters")
@@ -200,6 +216,14 @@ class PosteriorResult:
             "structure": self.structure,
             "checks": self.checks.reset_index().to_dict(orient="records"),
             "summary": self.summary.reset_index().to_dict(orient="records"),
+            "predictive": None
+            if self.predictive is None
+            else {
+                "window": [str(t) for t in self.predictive.window],
+                "validation_window": self.predicted_validation,
+                "draws": self.predictive.draws,
+                "table": self.predictive.table.to_dict(orient="records"),
+            },
         }
 
     def write_into(self, d: Path) -> None:
@@ -209,6 +233,10 @@ class PosteriorResult:
         self.combinations.to_csv(d / "posterior_combinations.csv", float_format="%.6g")
         self.nonunique.to_csv(d / "non_uniqueness.csv", float_format="%.6g")
         self.checks.to_csv(d / "posterior_checks.csv", float_format="%.6g")
+        if self.predictive is not None:
+            self.predictive.bands.to_csv(d / "predictive.csv", index=False, float_format="%.6g")
+            name = "validation.csv" if self.predicted_validation else "predictive_summary.csv"
+            self.predictive.table.to_csv(d / name, index=False, float_format="%.6g")
         np.savez_compressed(
             d / "chain.npz",
             chain=self.chain,

@@ -13,6 +13,7 @@ valid measured samples t (missing values and spikes excluded):
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -71,6 +72,20 @@ def residual_weights(kind: str, n_valid, weights, scale) -> np.ndarray:
     if kind == "rmse_accuracy":
         return 1.0 / (np.asarray(scale, dtype=float) ** 2 * n_valid)
     return np.ones(len(n_valid))
+
+
+def first_order_lag(x: np.ndarray, step: float, tau: np.ndarray) -> np.ndarray:
+    """Series ``x`` (shape (c, n_times)) read by a first-order sensor of response time ``tau`` [s] (shape (c,)),
+    sampled every ``step`` [s]: m_t = m_{t-1} + a (x_t - m_{t-1}), a = 1 - exp(-step / tau), m_0 = x_0 (tau 0:
+    ``x`` itself)."""
+    from scipy.signal import lfilter
+
+    out = np.array(x, dtype=float, copy=True)
+    for c, tc in enumerate(np.asarray(tau, dtype=float)):
+        if tc > 0:
+            a = 1.0 - math.exp(-step / tc)
+            out[c] = lfilter([a], [1.0, a - 1.0], x[c], zi=[(1.0 - a) * x[c][0]])[0]
+    return out
 
 
 class Evaluator:
@@ -139,7 +154,10 @@ class Evaluator:
         self.n_valid = self.mask.sum(axis=1)
         self.evaluations = 0
         self.seconds = 0.0
-        self.has_offsets = any(p.sensor is not None for p in space.parameters)
+        self.has_offsets = any(p.property == "offset" for p in space.parameters)
+        t = prepared.times
+        #: the outputs' sampling interval [s] (the median: a response time filters at this step)
+        self.step = float(np.median((t[1:] - t[:-1]).total_seconds())) if len(t) > 1 else 1.0
 
     # ------------------------------------------------------------------ evaluation
     def simulate(self, X: np.ndarray) -> np.ndarray:
@@ -156,6 +174,8 @@ class Evaluator:
         sim = np.empty((X.shape[0], len(self.keys), self.y.shape[1]))
         for k, (kind, key) in enumerate(self.keys):
             sim[:, k] = getattr(out, kind)[key]
+        for k, tau in self.space.response_times(X).items():  # probes read through a first-order lag
+            sim[:, k] = first_order_lag(sim[:, k], self.step, tau)
         self.evaluations += X.shape[0]
         self.seconds += time.perf_counter() - t
         return sim

@@ -162,6 +162,12 @@ class CalibrationResult:
         (d / "calibration.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
         self.metrics.to_csv(d / "metrics.csv", index=False, float_format="%.6g")
         self.parameter_table().to_csv(d / "parameters.csv", float_format="%.6g")
+        from ..validation import score_wall
+        from ..validation import write as write_validation
+
+        # the held-out window ([period] validation_start/end), which the fit never saw
+        lags = {self.space.targets[k]: float(v[0]) for k, v in self.space.response_times(self.x_opt).items()}
+        write_validation(score_wall(self.study, self.wall_opt, self.space.offset_values(self.x_opt), lags), d)
         from .plots import plot_convergence, plot_fit
 
         plot_convergence(self, d / "convergence.png")

@@ -12,6 +12,7 @@ the closest valid ones. The result, a frozen :class:`ParameterSpace`, is ``Study
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,9 @@ LAYER_PROPERTIES = (
     *HYGRIC_PROPERTIES,  # the moisture engines' (ham): mu, b of lambda(w), the sorption and liquid scales
 )
 PROBE_PROPERTIES = ("depth",)
-SENSOR_PROPERTIES = ("offset",)
+SENSOR_PROPERTIES = ("offset", "response_time")
+#: ``sensor = "faces"`` with ``property = "offset"``: one offset of both boundary (face) sensors
+FACES = "faces"
 OBJECTIVES = ("cse", "rmse_accuracy", "weighted_cse", "weighted_rmse")
 ALGORITHMS = ("pso-hj", "least-squares", "differential-evolution", "nelder-mead", "cma-es")
 CALIBRATION_KEYS = ("targets", "objective", "algorithm", "seed", "parameters", "settings", "reference_wall")
@@ -68,7 +71,12 @@ class Parameter:
     sensor : str or None
         The target sensor of an ``offset`` parameter: a correction [degC or W/m2] added to its
         measured signal before it is compared with the model (the meaning of the sensor's own
-        ``offset`` key; the calibrated value adds to it).
+        ``offset`` key; the calibrated value adds to it). ``"faces"`` for the offset of both boundary (face)
+        sensors together (:data:`FACES`).
+    shifts : tuple of str
+        For the face offset: the temperature targets it moves. A constant offset d of both face temperatures
+        moves every temperature of a linear wall by d (after the warm-up) and no heat flux, so it is applied as
+        the correction -d of each of these targets' measured signals.
     """
 
     name: str
@@ -79,6 +87,7 @@ class Parameter:
     lower: float
     upper: float
     sensor: str | None = None
+    shifts: tuple[str, ...] = ()
 
     @property
     def span(self) -> float:
@@ -144,6 +153,16 @@ class ParameterSpace:
         u = self.to_unit(np.asarray(x, dtype=float))
         return ["lower" if v <= band else "upper" if v >= 1 - band else "" for v in u]
 
+    def response_times(self, X: np.ndarray) -> dict[int, np.ndarray]:
+        """Target index -> first-order response time [s] per candidate, shape (n_candidates,), of every
+        ``response_time`` parameter (a probe that reads its temperature through a first-order lag)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return {
+            self.targets.index(p.sensor): X[:, j]
+            for j, p in enumerate(self.parameters)
+            if p.property == "response_time" and p.sensor in self.targets
+        }
+
     @property
     def contact_layers(self) -> frozenset[int]:
         """Layers whose contact resistance is a parameter (the grid needs a contact link there)."""
@@ -155,17 +174,21 @@ class ParameterSpace:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         out = np.zeros((X.shape[0], len(self.targets)))
         for j, p in enumerate(self.parameters):
-            if p.sensor is not None and p.sensor in self.targets:
+            if p.property == "offset" and p.sensor is not None and p.sensor in self.targets:
                 out[:, self.targets.index(p.sensor)] += X[:, j]
+            for name in p.shifts:  # a face offset: the opposite correction of every temperature target
+                out[:, self.targets.index(name)] -= X[:, j]
         return out
 
     def offset_values(self, x: np.ndarray) -> dict[str, float]:
         """Sensor name -> calibrated offset [degC or W/m2] of the ``offset`` parameters at ``x``."""
-        return {
-            p.sensor: float(v)
-            for p, v in zip(self.parameters, np.asarray(x, dtype=float), strict=True)
-            if p.sensor is not None
-        }
+        out: dict[str, float] = {}
+        for p, v in zip(self.parameters, np.asarray(x, dtype=float), strict=True):
+            if p.property == "offset" and p.sensor is not None and not p.shifts:
+                out[p.sensor] = out.get(p.sensor, 0.0) + float(v)
+            for name in p.shifts:
+                out[name] = out.get(name, 0.0) - float(v)
+        return out
 
     # ------------------------------------------------------------------ applying parameters
     def properties(self, wall: Wall, X: np.ndarray) -> tuple[PropertyArrays, dict[str, np.ndarray]]:
@@ -355,7 +378,8 @@ def parse_calibration(
     params: list[Parameter] = []
     used: set[tuple[str, str]] = set()  # (layer id or "probe:NAME", property): no property is a parameter twice
     for pt in t.tables("parameters", PARAMETER_KEYS, required=False):
-        got = _parse_parameter(pt, problems, wall, targets)
+        temps = [n for n in targets if n in by_name and by_name[n].quantity == "temperature"]
+        got = _parse_parameter(pt, problems, wall, targets, temps)
         if got is None:
             continue
         p, keys = got
@@ -402,7 +426,7 @@ def _parse_bounds(pt: Table, problems: Problems) -> tuple[float | None, float | 
     return lo, hi
 
 
-def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=()):
+def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=(), temperature_targets=()):
     """One ``[[calibration.parameters]]`` table: (Parameter, (layer ids, probe or sensor)) or None."""
     has_layers, has_probe, has_sensor = pt.has("layers"), pt.has("probe"), pt.has("sensor")
     if has_layers + has_probe + has_sensor != 1:
@@ -410,7 +434,7 @@ def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=(
             problems.add(pt.path, 'give one of layers = [...], probe = "..." or sensor = "..."')
         return None
     if has_sensor:
-        return _parse_offset(pt, problems, wall, targets)
+        return _parse_offset(pt, problems, wall, targets, temperature_targets)
     prop = pt.str("property", choices=PROBE_PROPERTIES if has_probe else LAYER_PROPERTIES)
     kind = pt.str("bounds_kind", "relative" if has_layers else "absolute", choices=("relative", "absolute"))
     lo, hi = _parse_bounds(pt, problems)
@@ -508,9 +532,10 @@ def _parse_parameter(pt: Table, problems: Problems, wall: Wall | None, targets=(
     return Parameter(pname, prop, idx, name if has_probe else None, base, lower, upper), keys
 
 
-def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets):
-    """A ``sensor = "..."``, ``property = "offset"`` table: a target sensor's offset [degC or W/m2], base 0,
-    absolute bounds around 0."""
+def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets, temperature_targets=()):
+    """A ``sensor = "..."`` table: ``property = "offset"``, a target sensor's offset [degC or W/m2], or
+    ``"response_time"``, a temperature target's first-order response time [s] (its reading lags the temperature
+    at its depth: dm/dt = (T - m) / tau); base 0, absolute bounds holding 0."""
     prop = pt.str("property", choices=SENSOR_PROPERTIES)
     kind = pt.str("bounds_kind", "absolute", choices=("absolute",))
     name = pt.raw("sensor")
@@ -521,6 +546,14 @@ def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets):
     if lo is not None and hi is not None and not lo <= 0.0 <= hi:
         problems.add(pt.at("bounds"), f"an offset's bounds must hold 0 (its base value), got [{lo:g}, {hi:g}]")
         lo = hi = None
+    if name == FACES:
+        if not temperature_targets:
+            problems.add(pt.at("sensor"), "an offset of the faces acts on the temperature targets: there are none")
+            return None
+        if wall is None or prop is None or kind is None or lo is None or hi is None:
+            return None
+        par = Parameter(f"offset[{FACES}]", prop, (), None, 0.0, float(lo), float(hi), sensor=FACES)
+        return dataclasses.replace(par, shifts=tuple(temperature_targets)), ("sensor:" + FACES,)
     if name not in targets:
         problems.add(
             pt.at("sensor"),
@@ -528,6 +561,13 @@ def _parse_offset(pt: Table, problems: Problems, wall: Wall | None, targets):
             f"{closest(name, list(targets))}",
         )
         return None
+    if prop == "response_time":
+        if name not in temperature_targets:
+            problems.add(pt.at("sensor"), f"{name!r}: a response time belongs to a temperature target")
+            return None
+        if lo is not None and hi is not None and lo < 0.0:
+            problems.add(pt.at("bounds"), f"a response time is >= 0 s, got lower bound {lo:g}")
+            return None
     if wall is None or prop is None or kind is None or lo is None or hi is None:
         return None
-    return Parameter(f"offset[{name}]", prop, (), None, 0.0, float(lo), float(hi), sensor=name), ("sensor:" + name,)
+    return Parameter(f"{prop}[{name}]", prop, (), None, 0.0, float(lo), float(hi), sensor=name), ("sensor:" + name,)

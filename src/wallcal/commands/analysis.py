@@ -159,6 +159,13 @@ def register(sub) -> None:
     p.add_argument("--max-steps", type=int, metavar="N", help="longest default chain (default 5000)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--resume", action="store_true")
+    p.add_argument(
+        "--predict",
+        nargs=2,
+        metavar=("START", "END"),
+        help="predict this period of the study's data from the draws plus the error model (predictive.csv, "
+        "predictive_summary.csv); default the study's validation window (predictive.csv, validation.csv)",
+    )
     p.add_argument("--out", metavar="DIR", help="default: posterior/ next to the study")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_posterior)
@@ -310,6 +317,23 @@ def _print_combinations(a):
         print(table(ok[["sd %", "prior sd %", "verdict"]], "Identifiable combinations (linearised sd, %)"))
 
 
+def _window(pair):
+    """``--predict START END`` as two timestamps (a clear error for a bad one), or None."""
+    if not pair:
+        return None
+    import pandas as pd
+
+    from ..errors import WallcalError
+
+    try:
+        start, end = (pd.Timestamp(v) for v in pair)
+    except ValueError as exc:
+        raise WallcalError(f"--predict {pair[0]} {pair[1]}: not two timestamps ({exc})") from None
+    if not end > start:
+        raise WallcalError(f"--predict {pair[0]} {pair[1]}: END must be after START")
+    return start, end
+
+
 def run_posterior(args) -> int:
     from ..analysis.identifiability import identifiability
     from ..analysis.posterior import check_positive, missing_from_diagnosis, posterior
@@ -347,6 +371,7 @@ def run_posterior(args) -> int:
         progress=not args.quiet,
         tempering=args.tempering,
         missing_extensions=missing,
+        predict=_window(args.predict),
     )
     print(res.report())
     print()
@@ -377,7 +402,24 @@ def run_posterior(args) -> int:
     print(
         f"\nwrote {out}/posterior_summary.csv, posterior_correlation.csv, posterior_combinations.csv, "
         "posterior_checks.csv, non_uniqueness.csv, posterior.json, chain.npz, corner.png, trace.png"
+        + (
+            ""
+            if res.predictive is None
+            else ", predictive.csv, " + ("validation.csv" if res.predicted_validation else "predictive_summary.csv")
+        )
     )
+    if res.predictive is not None:
+        w = res.predictive.window
+        print()
+        print(
+            table(
+                res.predictive.table.set_index("sensor"),
+                f"Posterior predictive {w[0]} .. {w[1]}"
+                + (" (held out)" if res.predicted_validation else "")
+                + ": the band's median against the measured values; coverage_95: share of measured points inside "
+                "the 95 % band (85-99 % is right: wider is as wrong as narrower)",
+            )
+        )
     if res.structure["rejected"]:
         print(f"\nSTRUCTURE REJECTED: {res.structure['statement']}")
     if res.status != "complete":

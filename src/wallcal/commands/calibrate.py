@@ -123,6 +123,14 @@ def run_calibrate(args) -> int:
     if res.floors:
         m["noise floor"] = pd.Series(res.floors)
     print(table(m.loc[[s.name for s in study.sensors]], "RMSE per sensor (Table VIII)"))
+    from ..validation import read as read_validation
+
+    held = read_validation(out)
+    if held is not None:
+        p = study.period
+        print()
+        title = f"Held-out window {p.validation_start} .. {p.validation_end}, never fitted (validation.csv)"
+        print(table(held.set_index("sensor"), title))
     if res.refinement is not None:
         ref = res.refinement
         print()

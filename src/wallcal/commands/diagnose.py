@@ -14,7 +14,8 @@ def register(sub) -> None:
         "interface next to a probe, lambda(T) of each insulation layer or group or all sharing one coefficient, a "
         "sensor offset), score each and each useful combination by a warm-started recalibration with BIC on the "
         "AR(1) likelihood of the residuals (each sensor's bias within its accuracy integrated out), and adopt "
-        "the set the data support. Writes OUT/candidates.csv, OUT/study.toml (the study "
+        "the set the data support (with a [period] validation window: only plausible extensions that lower the "
+        "held-out RMSE of every temperature target). Writes OUT/candidates.csv, OUT/study.toml (the study "
         "with the adopted extensions), OUT/residuals.csv and OUT/diagnose.json.",
     )
     d.add_argument("study")
@@ -47,5 +48,6 @@ def run_diagnose(args) -> int:
     print()
     print(d.summary())
     out = d.write(args.out)
-    print(f"\nwrote {out}/candidates.csv, study.toml, residuals.csv, diagnose.json")
+    extra = ", validation.csv (the held-out window)" if d.validation is not None else ""
+    print(f"\nwrote {out}/candidates.csv, study.toml, residuals.csv, diagnose.json{extra}")
     return 0
