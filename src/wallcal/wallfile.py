@@ -264,13 +264,24 @@ def _hygric(lt: Table, problems: Problems) -> dict:
             problems.add(lt.at(k), 'must be a table such as {form = "kuenzel", ...}, got ' + describe(v))
             continue
         tables[k] = v
-    if "moisture_storage" in tables:
-        from .moisture.materials import storage_function
+    from .moisture.materials import liquid_transport_functions, saturation_content, storage_function
 
+    w_sat = 1.0
+    if "moisture_storage" in tables:
         try:  # a storage table or closed form that cannot be a storage function is refused at once
             storage_function(tables["moisture_storage"], lt.path)
+            w_sat = saturation_content(dict(tables["moisture_storage"]))
         except StudyError as exc:
             problems.extend(exc.problems)
+            del tables["moisture_storage"]  # reported: not kept
+        except (KeyError, TypeError, ValueError, OverflowError):
+            pass  # said by storage_function
+    if "liquid_transport" in tables:
+        try:  # likewise a liquid transport table of an unknown form or with missing keys
+            liquid_transport_functions(tables["liquid_transport"], lt.path, w_sat)
+        except StudyError as exc:
+            problems.extend(exc.problems)
+            del tables["liquid_transport"]
     shape = lt.num("vapour_resistance_shape", None, **_limits("vapour_resistance_shape"))
     if shape is not None:
         tables["vapour_resistance_shape"] = shape

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import StudyError
+from ..errors import StudyError, clip, closest
 
 R_GAS = 8.314  # J/(mol K)
 M_WATER = 0.018  # kg/mol
@@ -340,17 +340,21 @@ def conductivity_table(w: list[float], log10_k: list[float]) -> Callable:
 def storage_function(storage: dict, where: str) -> Callable:
     """The callable ``w(pc)`` of a ``moisture_storage`` table (checked by :class:`HygricMaterial`)."""
     form = storage.get("form", "table")
+    _check_table(storage, "moisture_storage", STORAGE_FORMS, where)
     try:
         if form == "kuenzel":
-            w_80, w_f = float(storage["w_80"]), float(storage["w_f"])
+            w_80 = _water(storage, "w_80", f"{where}.moisture_storage")
+            w_f = _water(storage, "w_f", f"{where}.moisture_storage")
+            if not w_f > 0.0:
+                raise StudyError([f"{where}.moisture_storage.w_f: must be > 0 kg/m3, got {w_f}"])
             if not (0.0 <= w_80 < 0.8 * w_f):
                 raise StudyError(
-                    [f"{where}.moisture_storage: needs 0 <= w_80 < 0.8 w_f, got w_80 = {w_80}, w_f = {w_f}"]
+                    [f"{where}.moisture_storage.w_80: needs 0 <= w_80 < 0.8 w_f, got w_80 = {w_80}, w_f = {w_f}"]
                 )
             return kuenzel_storage(w_80, w_f)
         if form == "van_genuchten":
             modes = [(float(k), float(a), float(n), 1.0 - 1.0 / float(n)) for k, a, n in storage["modes"]]
-            return van_genuchten(float(storage["w_sat"]), modes)
+            return van_genuchten(_water(storage, "w_sat", f"{where}.moisture_storage"), modes)
         if form == "table":
             phi = [float(v) for v in storage["phi"]]
             w = [float(v) for v in storage["w"]]
@@ -383,9 +387,118 @@ def storage_function(storage: dict, where: str) -> Callable:
             return suction_table_storage(x, w)
     except (KeyError, TypeError, ValueError, OverflowError, ZeroDivisionError) as exc:
         raise StudyError([f"{where}.moisture_storage: form {form!r} is incomplete or malformed ({exc})"]) from None
-    raise StudyError(
-        [f"{where}.moisture_storage: unknown form {form!r} (kuenzel, van_genuchten, table, suction_table)"]
-    )
+    raise StudyError([f"{where}.moisture_storage.form: unknown form {form!r} ({', '.join(STORAGE_FORMS)})"])
+
+
+#: the largest water content a porous material can hold [kg/m3]: its pores full of liquid water
+MAX_WATER_CONTENT = 1000.0
+
+
+def _water(table: dict, key: str, where: str) -> float:
+    """``table[key]``, a water content [kg/m3] in 0..:data:`MAX_WATER_CONTENT` (KeyError when absent)."""
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise StudyError([f"{where}.{key}: must be a water content [kg/m3] (a number), got {clip(str(v), 40)}"])
+    try:
+        x = float(v)
+    except (TypeError, ValueError, OverflowError):
+        raise StudyError([f"{where}.{key}: must be a water content [kg/m3], got {str(v)[:40]}"]) from None
+    if not 0.0 <= x <= MAX_WATER_CONTENT:
+        raise StudyError([f"{where}.{key}: must lie in 0..{MAX_WATER_CONTENT:g} kg/m3, got {x:g}"])
+    return x
+
+
+#: the forms of a ``moisture_storage`` table
+STORAGE_FORMS = ("kuenzel", "van_genuchten", "table", "suction_table")
+#: the keys each form of a ``moisture_storage`` or ``liquid_transport`` table takes (``form`` besides)
+FORM_KEYS = {
+    ("moisture_storage", "kuenzel"): ("w_80", "w_f"),
+    ("moisture_storage", "van_genuchten"): ("w_sat", "modes"),
+    ("moisture_storage", "table"): ("phi", "w"),
+    ("moisture_storage", "suction_table"): ("log10_pc", "w"),
+    ("liquid_transport", "kuenzel"): ("absorption",),
+    ("liquid_transport", "exp_polynomial"): ("coefficients", "shift", "scale"),
+    ("liquid_transport", "table"): ("w", "diffusivity"),
+    ("liquid_transport", "conductivity_table"): ("w", "log10_k"),
+}
+
+
+def _numeric(v) -> bool:
+    """A number, or a list (of lists) of numbers, as a hygric table's entries are."""
+    if isinstance(v, list):
+        return all(_numeric(x) for x in v)
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _check_table(table: dict, kind: str, forms: tuple[str, ...], where: str) -> None:
+    """Every problem of a ``kind`` table's shape at once: its ``form`` (a name of ``forms``), keys that form does
+    not take (a misspelt key is never ignored) and water contents outside 0..:data:`MAX_WATER_CONTENT`."""
+    problems = []
+    form = table.get("form", "table")
+    if not isinstance(form, str):
+        problems.append(f"{where}.{kind}.form: must be a name ({', '.join(forms)})")
+    else:
+        valid = ("form", *FORM_KEYS.get((kind, form), ()))
+        for key in table:
+            if key not in valid:
+                hint = closest(str(key), valid)
+                problems.append(
+                    f"{where}.{kind}.{clip(str(key), 40)}: unknown key for form {form!r}"
+                    + (f"; {hint}" if hint else "")
+                )
+    for key, v in table.items():
+        if key != "form" and not _numeric(v):
+            problems.append(f"{where}.{kind}.{clip(str(key), 40)}: must be a number or a list of numbers")
+    for key in ("w_80", "w_f", "w_sat"):
+        if key in table and _numeric(table[key]):
+            try:
+                _water(table, key, f"{where}.{kind}")
+            except StudyError as exc:
+                problems.extend(exc.problems)
+    if problems:
+        raise StudyError(problems)
+
+
+#: the largest water absorption coefficient A taken [kg/(m2 s^0.5)] (the most absorbent building materials, e.g.
+#: calcium silicate boards, are below 2)
+MAX_ABSORPTION = 10.0
+#: the forms of a ``liquid_transport`` table
+LIQUID_FORMS = ("kuenzel", "exp_polynomial", "table", "conductivity_table")
+
+
+def liquid_transport_functions(lt: dict, where: str, w_sat: float, scale: float = 1.0, lscale: float = 1.0):
+    """``(k_l, d_w)`` of a ``liquid_transport`` table: the liquid conductivity K_l(w) [s] or the diffusivity
+    D_w(w) [m2/s] (the other None; both None for a zero absorption coefficient), ``scale`` the sorption scale and
+    ``lscale`` the liquid transport scale."""
+    form = lt.get("form", "table")
+    _check_table(lt, "liquid_transport", LIQUID_FORMS, where)
+    k_l = d_w = None
+    try:
+        if form == "kuenzel":
+            a = float(lt["absorption"])
+            if not 0.0 <= a <= MAX_ABSORPTION:
+                raise StudyError(
+                    [f"{where}.liquid_transport.absorption: must lie in 0..{MAX_ABSORPTION:g} kg/(m2 s^0.5), got {a:g}"]
+                )
+            if a > 0:
+                d0 = kuenzel_diffusivity(a, scale * w_sat)
+                d_w = lambda w: lscale * d0(w)  # noqa: E731
+        elif form == "exp_polynomial":
+            k0 = exp_polynomial(
+                [float(c) for c in lt["coefficients"]], float(lt.get("shift", 0.0)), float(lt.get("scale", 1.0))
+            )
+            k_l = lambda w: lscale * k0(np.asarray(w, dtype=float) / scale)  # noqa: E731
+        elif form == "table":
+            d0 = table_diffusivity(lt["w"], lt["diffusivity"])
+            d_w = lambda w: lscale * d0(w)  # noqa: E731
+        elif form == "conductivity_table":
+            k0 = conductivity_table(lt["w"], lt["log10_k"])
+            k_l = lambda w: lscale * k0(np.asarray(w, dtype=float) / scale)  # noqa: E731
+        else:
+            raise StudyError([f"{where}.liquid_transport.form: unknown form {form!r} ({', '.join(LIQUID_FORMS)})"])
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise StudyError([f"{where}.liquid_transport: form {form!r} is incomplete or malformed ({exc})"]) from None
+    return k_l, d_w
 
 
 def hygric_material(
@@ -414,8 +527,8 @@ def hygric_material(
                 [f'{where}: missing hygric key {key!r} (give it, a catalogue material = "..." or a hygric_file)']
             )
     storage = dict(keys["moisture_storage"])
-    w_sat = saturation_content(storage)
     base = storage_function(storage, where)
+    w_sat = saturation_content(storage)
     scale = float(keys.get("sorption_scale", 1.0))
     if not scale > 0:
         raise StudyError([f"{where}.sorption_scale: must be > 0, got {scale}"])
@@ -431,34 +544,7 @@ def hygric_material(
         raise StudyError([f"{where}.liquid_transport_scale: must be >= 0, got {lscale}"])
     k_l = d_w = None
     if lt:
-        lt = dict(lt)
-        form = lt.get("form", "table")
-        try:
-            if form == "kuenzel":
-                a = float(lt["absorption"])
-                if a > 0:
-                    d0 = kuenzel_diffusivity(a, scale * w_sat)
-                    d_w = lambda w: lscale * d0(w)  # noqa: E731
-            elif form == "exp_polynomial":
-                k0 = exp_polynomial(
-                    [float(c) for c in lt["coefficients"]], float(lt.get("shift", 0.0)), float(lt.get("scale", 1.0))
-                )
-                k_l = lambda w: lscale * k0(np.asarray(w, dtype=float) / scale)  # noqa: E731
-            elif form == "table":
-                d0 = table_diffusivity(lt["w"], lt["diffusivity"])
-                d_w = lambda w: lscale * d0(w)  # noqa: E731
-            elif form == "conductivity_table":
-                k0 = conductivity_table(lt["w"], lt["log10_k"])
-                k_l = lambda w: lscale * k0(np.asarray(w, dtype=float) / scale)  # noqa: E731
-            else:
-                raise StudyError(
-                    [
-                        f"{where}.liquid_transport: unknown form {form!r} "
-                        "(kuenzel, exp_polynomial, table, conductivity_table)"
-                    ]
-                )
-        except (KeyError, TypeError, ValueError, OverflowError) as exc:
-            raise StudyError([f"{where}.liquid_transport: form {form!r} is incomplete or malformed ({exc})"]) from None
+        k_l, d_w = liquid_transport_functions(dict(lt), where, w_sat, scale, lscale)
     b = float(keys.get("moisture_conductivity_coefficient", 0.0))
     with np.errstate(all="ignore"):  # a form that gives nan or inf is refused by HygricMaterial's checks
         return HygricMaterial(
