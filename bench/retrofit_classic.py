@@ -1,7 +1,8 @@
-"""Issue 38's classic case: a solid brick wall (0.365 m `solid brick`, 0.015 m `lime plaster`) given with --wall,
-the bundled example's [retrofit] settings and the shipped Chicago weather file, with four retrofit variants
-(80 mm mineral wool + plasterboard inside, the same with a vapour control layer, 60 mm calcium silicate board
-inside, 100 mm EPS outside). Runs `wallcal retrofit` and prints the moisture columns of variants.csv.
+"""Issue 38's classic case (examples/retrofit_classic/): a solid brick wall (0.365 m `solid brick`, 0.015 m
+`lime plaster`) given with --wall, the bundled example's [retrofit] settings and the shipped Chicago weather file,
+with four retrofit variants (80 mm mineral wool + plasterboard inside, the same with a vapour control layer, 60 mm
+calcium silicate board inside, 100 mm EPS outside). Runs `wallcal retrofit` and prints the moisture columns of
+variants.csv.
 
 Usage: python bench/retrofit_classic.py   (a few minutes: the vapour control layer variant alone takes ~100 s)
 """
@@ -16,44 +17,8 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "src" / "wallcal" / "examples" / "campaign_a" / "study.toml"
 
-BRICK_WALL = """
-[wall]
-name = "solid brick wall"
-
-[[wall.layers]]
-id = "brick"
-material = "solid brick"
-thickness = 0.365
-
-[[wall.layers]]
-id = "plaster"
-material = "lime plaster"
-thickness = 0.015
-"""
-
-VARIANTS = """
-[[retrofit.variants]]
-name = "as built"
-
-[[retrofit.variants]]
-name = "wool 80 + board"
-add_interior = [{ material = "mineral wool", thickness = 0.08 },
-                { material = "gypsum plasterboard", thickness = 0.0125 }]
-
-[[retrofit.variants]]
-name = "wool 80 + VCL + board"
-add_interior = [{ material = "mineral wool", thickness = 0.08 },
-                { material = "vapour control layer", thickness = 0.0002 },
-                { material = "gypsum plasterboard", thickness = 0.0125 }]
-
-[[retrofit.variants]]
-name = "calcium silicate 60"
-add_interior = [{ material = "calcium silicate board", thickness = 0.06 }]
-
-[[retrofit.variants]]
-name = "EPS 100 outside"
-add_exterior = [{ material = "EPS", thickness = 0.10 }]
-"""
+#: the wall and its variants, shipped as an example
+CLASSIC = REPO / "examples" / "retrofit_classic"
 
 COLUMNS = [
     "critical_interface",
@@ -75,8 +40,9 @@ def main() -> None:
     head = head.replace('reference_wall = "true_wall.toml"', "")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        (tmp / "study.toml").write_text(head + "\n[retrofit]\n" + settings + VARIANTS)
-        (tmp / "brick.toml").write_text(BRICK_WALL)
+        variants = (CLASSIC / "variants.toml").read_text()
+        (tmp / "study.toml").write_text(head + "\n[retrofit]\n" + settings + variants)
+        (tmp / "brick.toml").write_text((CLASSIC / "brick_wall.toml").read_text())
         code = wallcal(
             ["retrofit", str(tmp / "study.toml"), "--wall", str(tmp / "brick.toml"), "--out", str(tmp / "out")]
         )
