@@ -544,6 +544,16 @@ class Engine:
             walls = walls.walls(inp.wall, inp.probes)
         return stack_outputs(self.name, inp.probes, [self.run_wall(prepared, w) for w in walls])
 
+    def run_as_inputs(self, inp: SimulationInput, walls=None):
+        """:meth:`run` for an engine whose runs go through :meth:`run_inputs` (EnergyPlus): the input's wall,
+        another wall or a batch, each wall an input of its own (so a batch runs in parallel on the executor)."""
+        if not is_batch(walls):
+            wall = inp.wall if walls is None else walls
+            return self.run_inputs([inp if wall is inp.wall else inp.replace(wall=wall)])[0]
+        if isinstance(walls, WallBatch):
+            walls = walls.walls(inp.wall, inp.probes)
+        return stack_outputs(self.name, inp.probes, self.run_inputs([inp.replace(wall=w) for w in walls]))
+
     def run_inputs(self, inputs: Sequence[SimulationInput]) -> list[EngineOutput]:
         """One run of each input's wall (inputs that may differ in anything: time step, grid, wall). This default
         runs them one after the other; an engine whose runs take seconds (EnergyPlus) sends them to the executor

@@ -64,7 +64,7 @@ import numpy as np
 
 from ...errors import EngineError
 from ...grid import PropertyArrays
-from ..base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch, stack_outputs
+from ..base import Capabilities, Engine, EngineOutput, SimulationInput
 from ..depthflux import contact_at, depth_probes, flux_at_depth
 from .model import (
     ALLOWED_STEPS_PER_HOUR,
@@ -216,13 +216,7 @@ class EnergyPlusEngine(Engine):
             raise EngineError(f"the {self.name} engine cannot start from a given state")
         if isinstance(prepared, SimulationInput):
             prepared = self.prepare(prepared)
-        inp = prepared.inp
-        if not is_batch(walls):
-            wall = inp.wall if walls is None else walls
-            return self.run_inputs([inp if wall is inp.wall else inp.replace(wall=wall)])[0]
-        if isinstance(walls, WallBatch):
-            walls = walls.walls(inp.wall, inp.probes)
-        return stack_outputs(self.name, inp.probes, self.run_inputs([inp.replace(wall=w) for w in walls]))
+        return self.run_as_inputs(prepared.inp, walls)
 
     def run_inputs(self, inputs: Sequence[SimulationInput]) -> list[EngineOutput]:
         """Run EnergyPlus on each input (each checked first), one task per run on the active executor of

@@ -55,8 +55,8 @@ from ...moisture.materials import (
     rh_from_suction,
     saturation_pressure,
 )
-from ..base import Capabilities, Engine, EngineOutput, SimulationInput, WallBatch, is_batch, stack_outputs
-from .model import DAY, WALL_SURFACE, YEAR_DAYS
+from ..base import Capabilities, Engine, EngineOutput, SimulationInput
+from .model import BOX_SURFACES, DAY, WALL_SURFACE, YEAR_DAYS, box_surfaces
 
 #: Relative humidities (fractions) at which the sorption isotherm and mu(RH) are tabulated (EnergyPlus: <= 25).
 ISOTHERM_RH = (
@@ -392,30 +392,8 @@ def build_hamt_idf(
     o.append(materials)
     o.append(idf_object("Construction", [(CONSTRUCTION, "Name")] + [(n, f"Layer {j}") for j, n in enumerate(names, 1)]))
     o.append(idf_object("Zone", [("ZONE", "Name")]))
-    s = 2.0
-    boxes = {
-        WALL_SURFACE: ("Wall", [(0, 0, s), (0, 0, 0), (s, 0, 0), (s, 0, s)]),
-        "EAST": ("Wall", [(s, 0, s), (s, 0, 0), (s, s, 0), (s, s, s)]),
-        "NORTH": ("Wall", [(s, s, s), (s, s, 0), (0, s, 0), (0, s, s)]),
-        "WEST": ("Wall", [(0, s, s), (0, s, 0), (0, 0, 0), (0, 0, s)]),
-        "ROOF": ("Roof", [(0, s, s), (0, 0, s), (s, 0, s), (s, s, s)]),
-        "FLOOR": ("Floor", [(s, s, 0), (s, 0, 0), (0, 0, 0), (0, s, 0)]),
-    }
-    for name, (kind, verts) in boxes.items():
-        fields = [(name, "Name"), (kind, "Surface Type"), (CONSTRUCTION, "Construction"), ("ZONE", "Zone"),
-                  (None, "Space"), ("Outdoors", "Outside Boundary Condition"), (None, "Boundary Object"),
-                  ("NoSun", "Sun Exposure"), ("NoWind", "Wind Exposure"), (0.0, "View Factor to Ground"),
-                  (4, "Number of Vertices")]  # fmt: skip
-        for j, (vx, vy, vz) in enumerate(verts, start=1):
-            fields += [(float(vx), f"Vertex {j} X"), (float(vy), f"Vertex {j} Y"), (float(vz), f"Vertex {j} Z")]
-        o.append(idf_object("BuildingSurface:Detailed", fields))
-        if name != WALL_SURFACE:
-            o.append(
-                idf_object(
-                    "SurfaceProperty:HeatTransferAlgorithm",
-                    [(name, "Surface Name"), ("ConductionTransferFunction", "Algorithm")],
-                )
-            )
+    o += box_surfaces(CONSTRUCTION, "Outdoors", None, other_surfaces_ctf=True)
+    for name in BOX_SURFACES:
         o.append(
             idf_object(
                 "SurfaceProperty:ConvectionCoefficients",
@@ -663,13 +641,7 @@ class EnergyPlusHamtEngine(Engine):
     def run(self, prepared, walls=None, *, initial_state=None):
         if initial_state is not None:
             raise EngineError(f"the {self.name} engine cannot start from a given state")
-        inp = prepared
-        if not is_batch(walls):
-            wall = inp.wall if walls is None else walls
-            return self.run_inputs([inp if wall is inp.wall else inp.replace(wall=wall)])[0]
-        if isinstance(walls, WallBatch):
-            walls = walls.walls(inp.wall, inp.probes)
-        return stack_outputs(self.name, inp.probes, self.run_inputs([inp.replace(wall=w) for w in walls]))
+        return self.run_as_inputs(prepared, walls)
 
     def run_inputs(self, inputs: Sequence[SimulationInput]) -> list[EngineOutput]:
         """Run EnergyPlus HAMT on each input (each checked first) through :func:`wallcal.eplus.map_runs`."""

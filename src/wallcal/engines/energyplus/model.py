@@ -22,6 +22,43 @@ DAY = 86400.0
 YEAR_DAYS = 365
 
 
+#: the fictitious zone's surfaces: a 2 m cube whose first face is the studied wall (WALL_SURFACE)
+BOX_SIZE_M = 2.0
+BOX_SURFACES = (WALL_SURFACE, "EAST", "NORTH", "WEST", "ROOF", "FLOOR")
+
+
+def box_surfaces(construction: str, outside: str, outside_object: str | None, *, other_surfaces_ctf: bool) -> list[str]:
+    """The fictitious zone's six ``BuildingSurface:Detailed`` objects, all of ``construction`` with the outside
+    boundary ``outside`` (and its object), no sun and no wind; with ``other_surfaces_ctf`` every surface but the
+    studied wall is solved by conduction transfer functions (cheaper, and it does not change the wall)."""
+    s = BOX_SIZE_M
+    boxes = {
+        WALL_SURFACE: ("Wall", [(0, 0, s), (0, 0, 0), (s, 0, 0), (s, 0, s)]),
+        "EAST": ("Wall", [(s, 0, s), (s, 0, 0), (s, s, 0), (s, s, s)]),
+        "NORTH": ("Wall", [(s, s, s), (s, s, 0), (0, s, 0), (0, s, s)]),
+        "WEST": ("Wall", [(0, s, s), (0, s, 0), (0, 0, 0), (0, 0, s)]),
+        "ROOF": ("Roof", [(0, s, s), (0, 0, s), (s, 0, s), (s, s, s)]),
+        "FLOOR": ("Floor", [(s, s, 0), (s, 0, 0), (0, 0, 0), (0, s, 0)]),
+    }
+    o = []
+    for name, (kind, verts) in boxes.items():
+        fields = [(name, "Name"), (kind, "Surface Type"), (construction, "Construction Name"), ("ZONE", "Zone Name"),
+                  (None, "Space Name"), (outside, "Outside Boundary Condition"),
+                  (outside_object, "Outside Boundary Condition Object"), ("NoSun", "Sun Exposure"),
+                  ("NoWind", "Wind Exposure"), (0.0, "View Factor to Ground"), (4, "Number of Vertices")]  # fmt: skip
+        for j, (vx, vy, vz) in enumerate(verts, start=1):
+            fields += [(float(vx), f"Vertex {j} X"), (float(vy), f"Vertex {j} Y"), (float(vz), f"Vertex {j} Z")]
+        o.append(idf_object("BuildingSurface:Detailed", fields))
+        if name != WALL_SURFACE and other_surfaces_ctf:
+            o.append(
+                idf_object(
+                    "SurfaceProperty:HeatTransferAlgorithm",
+                    [(name, "Surface Name"), ("ConductionTransferFunction", "Algorithm")],
+                )
+            )
+    return o
+
+
 def slowest_time_constant(wall: Wall, n_cells: int = 400) -> float:
     """Time constant [s] of the wall's slowest mode with both faces held at fixed temperatures.
 
@@ -348,43 +385,8 @@ def build_idf(
             ],
         )
     )
-    s = 2.0
-    boxes = {
-        WALL_SURFACE: ("Wall", [(0, 0, s), (0, 0, 0), (s, 0, 0), (s, 0, s)]),
-        "EAST": ("Wall", [(s, 0, s), (s, 0, 0), (s, s, 0), (s, s, s)]),
-        "NORTH": ("Wall", [(s, s, s), (s, s, 0), (0, s, 0), (0, s, s)]),
-        "WEST": ("Wall", [(0, s, s), (0, s, 0), (0, 0, 0), (0, 0, s)]),
-        "ROOF": ("Roof", [(0, s, s), (0, 0, s), (s, 0, s), (s, s, s)]),
-        "FLOOR": ("Floor", [(s, s, 0), (s, 0, 0), (0, 0, 0), (0, s, 0)]),
-    }
-    for name, (kind, verts) in boxes.items():
-        fields = [
-            (name, "Name"),
-            (kind, "Surface Type"),
-            (cons, "Construction Name"),
-            ("ZONE", "Zone Name"),
-            (None, "Space Name"),
-            ("OtherSideCoefficients", "Outside Boundary Condition"),
-            ("OSC", "Outside Boundary Condition Object"),
-            ("NoSun", "Sun Exposure"),
-            ("NoWind", "Wind Exposure"),
-            (0.0, "View Factor to Ground"),
-            (4, "Number of Vertices"),
-        ]
-        for j, (vx, vy, vz) in enumerate(verts, start=1):
-            fields += [
-                (float(vx), f"Vertex {j} X"),
-                (float(vy), f"Vertex {j} Y"),
-                (float(vz), f"Vertex {j} Z"),
-            ]
-        o.append(idf_object("BuildingSurface:Detailed", fields))
-        if name != WALL_SURFACE and other_surfaces_ctf:
-            o.append(
-                idf_object(
-                    "SurfaceProperty:HeatTransferAlgorithm",
-                    [(name, "Surface Name"), ("ConductionTransferFunction", "Algorithm")],
-                )
-            )
+    o += box_surfaces(cons, "OtherSideCoefficients", "OSC", other_surfaces_ctf=other_surfaces_ctf)
+    for name in BOX_SURFACES:
         o.append(
             idf_object(
                 "SurfaceProperty:ConvectionCoefficients",
