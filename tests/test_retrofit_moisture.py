@@ -82,7 +82,7 @@ def test_driving_rain_follows_en_iso_15927_3_by_hand():
     assert list(mm_h[5:8]) == pytest.approx([one, one, one])
     assert mm_h[8] == 0.0 and mm_h[3] == 0.0
     assert info.hours_with_data == 9 and info.precipitation_mm == pytest.approx(12.0)
-    assert "underestimated" in info.note()
+    assert "underestimated" in info.note() and "months with data: 1" in info.note()
 
 
 def test_no_precipitation_is_said():

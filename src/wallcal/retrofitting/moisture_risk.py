@@ -90,6 +90,7 @@ class RainInfo:
     precipitation_mm: float
     driving_rain_mm: float
     factor: float
+    months: str = ""  # the months with precipitation data, e.g. "4" or "1, 2, 3"
 
     def note(self) -> str:
         if self.hours_with_data == 0:
@@ -99,9 +100,10 @@ class RainInfo:
             f"{self.driving_rain_mm:.1f} mm/year on the wall from {self.precipitation_mm:.1f} mm of precipitation"
         )
         if self.hours_with_data < self.hours:
+            where = f" (months with data: {self.months})" if self.months else ""
             s += (
-                f"; the file gives precipitation for {self.hours_with_data} of {self.hours} hours, the others count "
-                "as dry, so the rain load is underestimated"
+                f"; the file gives precipitation for {self.hours_with_data} of {self.hours} hours{where}, the others "
+                "count as dry, so the rain load is underestimated"
             )
         return s
 
@@ -135,7 +137,10 @@ def driving_rain(weather: Weather, azimuth: float, factor: float = RAIN_FACTOR) 
     wind_ok = np.isfinite(v) & (v >= 0) & (v < MISSING_WIND) & np.isfinite(direction) & (direction < MISSING_WIND)
     cosine = np.maximum(np.cos(np.radians(np.where(wind_ok, direction, 0.0) - azimuth)), 0.0)
     r_bv = np.where(wind_ok, factor * RAIN_R2 * np.where(wind_ok, v, 0.0) * cosine * r_h**RAIN_EXPONENT, 0.0)
-    info = RainInfo(int(ok.sum()), n, float(depth[ok].sum()), float(r_bv.sum()), factor)
+    months = sorted({int(m) for m in d.index[ok].month}) if hasattr(d.index, "month") else []
+    info = RainInfo(
+        int(ok.sum()), n, float(depth[ok].sum()), float(r_bv.sum()), factor, ", ".join(str(m) for m in months)
+    )
     return r_bv / 3600.0, info
 
 
