@@ -42,7 +42,10 @@ RETROFIT_KEYS = (
     "mould_sensitivity",
     "mould_decline_coefficient",
     "moisture_max_years",
+    "moisture_interior_climate",
 )
+#: ``moisture_interior_climate``: the interior of the moisture runs (moisture_risk.interior_climate)
+INTERIOR_CLIMATES = ("constant", "EN 15026 normal", "EN 15026 high")
 VARIANT_KEYS = ("name", "add_exterior", "add_interior", "remove", "replace")
 
 
@@ -110,6 +113,11 @@ class RetrofitSpec:
         Ojanen's relative decline coefficient C_mat [-].
     moisture_max_years : int
         Most years of the periodic hygrothermal run.
+    moisture_interior_climate : str
+        The interior of the moisture runs: ``"constant"`` (``interior_temperature`` and the interior RH or
+        humidity class) or EN 15026 Annex C's ``"EN 15026 normal"`` / ``"EN 15026 high"`` occupancy (indoor
+        temperature and RH from the daily mean outdoor temperature). The heat loss and ISO 13788 keep the
+        constant interior.
     """
 
     weather: str
@@ -133,6 +141,7 @@ class RetrofitSpec:
     mould_sensitivity: tuple[tuple[str, str], ...] = ()
     mould_decline_coefficient: float = 0.25
     moisture_max_years: int = 10
+    moisture_interior_climate: str = "constant"
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
     def replace(self, **changes) -> RetrofitSpec:
@@ -233,6 +242,7 @@ def parse_retrofit(raw: Any, problems: Problems, base_dir: Path | None, wall: Wa
         "driving_rain_factor": t.num("driving_rain_factor", 0.4, ge=0.0, le=10.0),
         "mould_decline_coefficient": t.num("mould_decline_coefficient", 0.25, ge=0.0, le=1.0),
         "moisture_max_years": t.num("moisture_max_years", 10, integer=True, ge=2, le=100),
+        "moisture_interior_climate": t.str("moisture_interior_climate", "constant", choices=INTERIOR_CLIMATES),
     }
     if kw["moisture_max_years"] is not None:
         kw["moisture_max_years"] = int(kw["moisture_max_years"])

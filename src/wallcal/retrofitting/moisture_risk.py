@@ -12,11 +12,14 @@ Boundaries (:func:`ham_boundaries`):
   sol-air radiative term h_e (T_eq - T_e) of :mod:`.boundary` as a heat flux into the face (absorbed solar
   minus the long-wave loss to the sky), vapour transfer coefficient ``beta = LEWIS * h`` and driving rain
   (:func:`driving_rain`);
-- interior: air at the interior temperature with h_i and ``beta = LEWIS * h_i``, relative humidity constant
-  or from the ISO 13788 humidity class (Annex A on daily means: p_i = p_e + 1.10 Delta_p(theta_e)).
+- interior (:func:`interior_climate`): air with h_i and ``beta = LEWIS * h_i``; with ``moisture_interior_climate
+  = "constant"`` at the interior temperature, the relative humidity constant or from the ISO 13788 humidity
+  class (Annex A on daily means: p_i = p_e + 1.10 Delta_p(theta_e)); with ``"EN 15026 normal"`` / ``"EN 15026
+  high"`` EN 15026 Annex C's indoor temperature and RH from each day's mean outdoor temperature.
 
 Mould: :mod:`wallcal.moisture.mould` on the hourly temperature and relative humidity of the cell next to
-each interface, on each side with the sensitivity class of that side's material; the worse side counts, and
+each interface, on each side with the sensitivity class of that side's own material (issue 38's rule; a covered
+painted or papered old surface is named with ``[retrofit] mould_sensitivity``); the worse side counts, and
 the interface with the highest mould index (then the highest RH) is the critical one.
 
 Verdict (:func:`verdict`), in this order:
@@ -61,6 +64,11 @@ INITIAL_RH = 0.8
 #: verdict thresholds
 MOULD_LIMIT = 1.0
 DRY_RH = 0.80
+#: EN 15026 Annex C indoor climate from the daily mean outdoor temperature theta_e [degC]: temperature 20 degC for
+#: theta_e <= 10, rising linearly to 25 degC at theta_e >= 20; RH 30 % (normal occupancy) or 40 % (high) for
+#: theta_e <= -10, rising linearly to 60 % / 70 % at theta_e >= 20. (theta_e, value) at the two ends
+EN15026_T = ((10.0, 20.0), (20.0, 25.0))
+EN15026_RH = {"EN 15026 normal": ((-10.0, 0.30), (20.0, 0.60)), "EN 15026 high": ((-10.0, 0.40), (20.0, 0.70))}
 #: the solver's grid: cells of GRID_FIRST at faces and interfaces growing by GRID_RATIO to GRID_MAX. 5 mm at the
 #: interfaces: the interface conditions are those 2.5 mm into each material (where the mould index is read);
 #: finer cells make condensation against a vapour-tight layer in a non-capillary material very slow to solve
@@ -82,6 +90,7 @@ class RainInfo:
     precipitation_mm: float
     driving_rain_mm: float
     factor: float
+    months: str = ""  # the months with precipitation data, e.g. "4" or "1, 2, 3"
 
     def note(self) -> str:
         if self.hours_with_data == 0:
@@ -91,9 +100,10 @@ class RainInfo:
             f"{self.driving_rain_mm:.1f} mm/year on the wall from {self.precipitation_mm:.1f} mm of precipitation"
         )
         if self.hours_with_data < self.hours:
+            where = f" (months with data: {self.months})" if self.months else ""
             s += (
-                f"; the file gives precipitation for {self.hours_with_data} of {self.hours} hours, the others count "
-                "as dry, so the rain load is underestimated"
+                f"; the file gives precipitation for {self.hours_with_data} of {self.hours} hours{where}, the others "
+                "count as dry, so the rain load is underestimated"
             )
         return s
 
@@ -127,7 +137,10 @@ def driving_rain(weather: Weather, azimuth: float, factor: float = RAIN_FACTOR) 
     wind_ok = np.isfinite(v) & (v >= 0) & (v < MISSING_WIND) & np.isfinite(direction) & (direction < MISSING_WIND)
     cosine = np.maximum(np.cos(np.radians(np.where(wind_ok, direction, 0.0) - azimuth)), 0.0)
     r_bv = np.where(wind_ok, factor * RAIN_R2 * np.where(wind_ok, v, 0.0) * cosine * r_h**RAIN_EXPONENT, 0.0)
-    info = RainInfo(int(ok.sum()), n, float(depth[ok].sum()), float(r_bv.sum()), factor)
+    months = sorted({int(m) for m in d.index[ok].month}) if hasattr(d.index, "month") else []
+    info = RainInfo(
+        int(ok.sum()), n, float(depth[ok].sum()), float(r_bv.sum()), factor, ", ".join(str(m) for m in months)
+    )
     return r_bv / 3600.0, info
 
 
@@ -136,23 +149,50 @@ def _marks_from_means(x: np.ndarray) -> np.ndarray:
     return 0.5 * (np.concatenate([[x[-1]], x]) + np.concatenate([x, [x[0]]]))
 
 
+def _daily_means(weather: Weather) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's day mean (blocks of 24 rows from the first) of the outdoor air temperature [degC] and vapour
+    pressure [Pa]."""
+    d = weather.data
+    t = d["temp_air"].to_numpy(dtype=float)
+    p = d["relative_humidity"].to_numpy(dtype=float) / 100.0 * saturation_pressure(t)
+    day = np.arange(weather.hours) // 24
+    t_day = pd.Series(t).groupby(day).transform("mean").to_numpy()
+    p_day = pd.Series(p).groupby(day).transform("mean").to_numpy()
+    return t_day, p_day
+
+
 def interior_relative_humidity(weather: Weather, spec) -> np.ndarray:
-    """Interior RH (fraction) at the hour marks 0..N: constant, or ISO 13788 Annex A on daily means
-    (p_i = p_e + 1.10 Delta_p(theta_e), theta_e and p_e the mean of the 24 hours of each day), at most 0.95."""
+    """Interior RH (fraction) at the hour marks 0..N of the constant interior: constant, or ISO 13788 Annex A on
+    daily means (p_i = p_e + 1.10 Delta_p(theta_e), theta_e and p_e the mean of the 24 hours of each day), at
+    most 0.95."""
     from .glaser import interior_vapour_pressure
 
     n = weather.hours
     if spec.interior_humidity_class is None:
         return np.full(n + 1, float(spec.interior_relative_humidity))
-    d = weather.data
-    t = d["temp_air"].to_numpy(dtype=float)
-    p = d["relative_humidity"].to_numpy(dtype=float) / 100.0 * saturation_pressure(t)
-    day = np.arange(n) // 24
-    t_day = pd.Series(t).groupby(day).transform("mean").to_numpy()
-    p_day = pd.Series(p).groupby(day).transform("mean").to_numpy()
+    t_day, p_day = _daily_means(weather)
     p_i = interior_vapour_pressure(t_day, p_day, spec.interior_temperature, None, spec.interior_humidity_class)
     rh = np.minimum(np.asarray(p_i) / saturation_pressure(spec.interior_temperature), 0.95)
     return np.concatenate([[rh[-1]], rh])
+
+
+def en15026_interior(outdoor_daily_mean, occupancy: str) -> tuple[np.ndarray, np.ndarray]:
+    """EN 15026 Annex C's indoor temperature [degC] and RH (fraction) for daily mean outdoor temperatures [degC];
+    ``occupancy``: ``"EN 15026 normal"`` or ``"EN 15026 high"`` (:data:`EN15026_T`, :data:`EN15026_RH`)."""
+    (t0, ti0), (t1, ti1) = EN15026_T
+    (r0, rh0), (r1, rh1) = EN15026_RH[occupancy]
+    theta = np.asarray(outdoor_daily_mean, dtype=float)
+    return np.interp(theta, [t0, t1], [ti0, ti1]), np.interp(theta, [r0, r1], [rh0, rh1])
+
+
+def interior_climate(weather: Weather, spec) -> tuple[np.ndarray | float, np.ndarray]:
+    """The moisture run's interior air temperature [degC] (a float when constant) and RH (fraction) at the hour
+    marks 0..N, after ``spec.moisture_interior_climate`` (module docstring)."""
+    if spec.moisture_interior_climate == "constant":
+        return float(spec.interior_temperature), interior_relative_humidity(weather, spec)
+    t_day, _ = _daily_means(weather)
+    t_i, rh_i = en15026_interior(t_day, spec.moisture_interior_climate)
+    return np.concatenate([[t_i[-1]], t_i]), np.concatenate([[rh_i[-1]], rh_i])
 
 
 def ham_boundaries(weather: Weather, spec, yb, rain_factor: float = RAIN_FACTOR) -> tuple[Boundary, Boundary, RainInfo]:
@@ -189,10 +229,11 @@ def ham_boundaries(weather: Weather, spec, yb, rain_factor: float = RAIN_FACTOR)
         heat_flux=radiative,
     )
     h_i = spec.interior_surface_coefficient
+    t_i, rh_i = interior_climate(weather, spec)
     intr = Boundary(
         "air",
-        float(spec.interior_temperature),
-        interior_relative_humidity(weather, spec),
+        t_i,
+        rh_i,
         times=times,
         h=h_i,
         beta=LEWIS * h_i,
@@ -287,13 +328,12 @@ def periodic_run(
     initial: tuple[np.ndarray, np.ndarray] | None = None,
     decline: float = mould.DECLINE_COEFFICIENT,
     grid: tuple[float, float, float] = (GRID_FIRST, GRID_RATIO, GRID_MAX),
-    room_face: tuple[int, mould.MouldClass] | None = None,
 ) -> HygroResult:
     """Run the layers year after year until periodic (module docstring).
 
     ``initial``: (temperature, relative humidity) per cell to start from (default: the interior temperature
-    and ``INITIAL_RH`` everywhere); ``classes``: the mould class of each layer; ``room_face``: (j, class) gives
-    the exterior-side face of interface j (between layers j and j + 1) that class instead of layer j's.
+    and ``INITIAL_RH`` everywhere); ``classes``: the mould class of each layer (each side of an interface has
+    its own layer's class).
     """
     import time
 
@@ -318,7 +358,6 @@ def periodic_run(
             max_years=max_years,
             decline=decline,
             grid=grid,
-            room_face=room_face,
         )
     else:
         t_init, rh_init = initial
@@ -344,9 +383,10 @@ def periodic_run(
     for j in range(n_layers - 1):
         cells_a = np.flatnonzero(layer_of_cell == j)
         cells_b = np.flatnonzero(layer_of_cell == j + 1)
-        class_a = room_face[1] if room_face is not None and room_face[0] == j else classes[j]
         interfaces.append(
-            Interface(f"{layer_ids[j]}|{layer_ids[j + 1]}", int(cells_a[-1]), int(cells_b[0]), class_a, classes[j + 1])
+            Interface(
+                f"{layer_ids[j]}|{layer_ids[j + 1]}", int(cells_a[-1]), int(cells_b[0]), classes[j], classes[j + 1]
+            )
         )
     n_i = len(interfaces)
     rh = np.empty((n_i, hours + 1))
@@ -400,9 +440,10 @@ def _w_of(g, rh) -> np.ndarray:
 #: Default mould sensitivity class of the catalogue's materials, from Ojanen et al. (2010), Table 1: untreated wood
 #: "very sensitive"; planed wood, paper-coated products and wood-based boards "sensitive"; cement- or plastic-based
 #: materials and mineral fibres "medium resistant" (mineral plasters, brick, concrete, calcium silicate taken as
-#: cement-like); glass and metal "resistant". Any other material: ``DEFAULT_CLASS``. The former room-side face of
-#: the wall, covered by interior insulation, is ``ROOM_FACE_CLASS`` whatever its material (paint, wallpaper paste
-#: and dust on it). ``[retrofit] mould_sensitivity`` overrides them by layer id or material name.
+#: cement-like); glass and metal "resistant". Any other material: ``DEFAULT_CLASS``. Each side of an interface has
+#: its own material's class (issue 38's rule), the former room face of a wall covered by interior insulation
+#: included; ``[retrofit] mould_sensitivity`` overrides them by layer id or material name (a painted or papered
+#: old surface: "sensitive", Ojanen's paper-coated products).
 DEFAULT_CLASSES = {
     "timber": "very sensitive",
     "osb": "sensitive",
@@ -428,7 +469,6 @@ DEFAULT_CLASSES = {
     "wind barrier": "medium resistant",
 }
 DEFAULT_CLASS = "sensitive"
-ROOM_FACE_CLASS = "sensitive"
 
 
 def hygric_keys(layer) -> dict | None:
@@ -538,25 +578,8 @@ class RunSettings:
     overrides: tuple[tuple[str, str], ...]
 
 
-def room_face(wall, base_ids: set[str], overrides: tuple[tuple[str, str], ...] = ()):
-    """(j, class) for the former room-side face: the interface j after the innermost layer of the original wall when
-    layers were added inside it (None otherwise); an override of that layer's id or material wins."""
-    ids = [layer.id for layer in wall.layers]
-    inner = max((j for j, i in enumerate(ids) if i in base_ids), default=None)
-    if inner is None or inner == len(ids) - 1:
-        return None
-    layer = wall.layers[inner]
-    keys = {k.strip().lower() for k, _ in overrides}
-    if layer.id.strip().lower() in keys or layer.material.strip().lower() in keys:
-        return None
-    return inner, mould.mould_class(ROOM_FACE_CLASS)
-
-
-def run_wall(
-    wall, settings: RunSettings, where_of: Callable[[int], str], initial=None, base_ids: frozenset = frozenset()
-) -> HygroResult:
-    """One wall's periodic hygrothermal run with its interfaces' mould index (``base_ids``: the layer ids of the
-    wall before the variant, to find the former room-side face)."""
+def run_wall(wall, settings: RunSettings, where_of: Callable[[int], str], initial=None) -> HygroResult:
+    """One wall's periodic hygrothermal run with its interfaces' mould index."""
     return periodic_run(
         ham_layers(wall, where_of),
         [layer.id for layer in wall.layers],
@@ -567,27 +590,26 @@ def run_wall(
         max_years=settings.max_years,
         initial=initial,
         decline=settings.decline,
-        room_face=room_face(wall, base_ids, settings.overrides),
     )
 
 
 def draw_task(task) -> tuple[float, float, int, float]:
-    """A posterior draw's run (top level, for :class:`wallcal.cluster.Executor`): ``(wall, settings, initial,
-    base_ids)`` -> (mould index at the critical interface, water trend [kg/(m2 year)], years, CPU seconds)."""
+    """A posterior draw's run (top level, for :class:`wallcal.cluster.Executor`): ``(wall, settings, initial)``
+    -> (mould index at the critical interface, water trend [kg/(m2 year)], years, CPU seconds)."""
     import time
 
-    wall, settings, initial, base_ids = task
+    wall, settings, initial = task
     cpu = time.process_time()
-    r = run_wall(wall, settings, lambda k: f"layer {k}", initial=initial, base_ids=base_ids)
+    r = run_wall(wall, settings, lambda k: f"layer {k}", initial=initial)
     return r.mould_max, r.trend, r.years, time.process_time() - cpu
 
 
-def run_draws(walls, settings: RunSettings, initial, base_ids: frozenset = frozenset()) -> np.ndarray:
+def run_draws(walls, settings: RunSettings, initial) -> np.ndarray:
     """Every draw's (mould index, trend, years, CPU seconds), on the active :class:`wallcal.cluster.Executor` when
     there is one, else one after the other here. ``initial``: the point wall's end state (the draws start from it)."""
     from ..cluster import current_executor
 
-    tasks = [(w, settings, initial, base_ids) for w in walls]
+    tasks = [(w, settings, initial) for w in walls]
     ex = current_executor()
     out = ex.map(draw_task, tasks) if ex is not None and len(tasks) > 1 else [draw_task(t) for t in tasks]
     return np.array(out, dtype=float).reshape(len(tasks), 4)

@@ -489,7 +489,8 @@ class RetrofitResult:
             + ", ".join(
                 f"{v.spec.name!r} {v.hygro.years}" + ("" if v.hygro.periodic else " (not periodic)") for v in ran
             )
-            + f" years; mould index (VTT, C_mat {self.spec.mould_decline_coefficient:g}) at every layer interface; "
+            + f" years; interior: {_interior_words(self.spec)}; mould index (VTT, C_mat "
+            f"{self.spec.mould_decline_coefficient:g}) at every layer interface, each side with its material's class; "
             f"verdicts: mould index >= {mr.MOULD_LIMIT:g} mould_risk, RH >= {mr.DRY_RH:g} acceptable, below dry, "
             "not periodic with rising water accumulating.",
         ]
@@ -639,6 +640,18 @@ def moisture_frames(v: VariantResult, hour_index=None) -> tuple[pd.DataFrame, pd
     water.insert(0, "year", np.arange(len(water)))
     water["total"] = h.layer_water.sum(axis=1)
     return hourly, water.set_index("year")
+
+
+def _interior_words(spec: RetrofitSpec) -> str:
+    """The moisture run's interior, in words (for the notes)."""
+    if spec.moisture_interior_climate != "constant":
+        return f"{spec.moisture_interior_climate} occupancy (Annex C, from each day's mean outdoor temperature)"
+    rh = (
+        f"humidity class {spec.interior_humidity_class}"
+        if spec.interior_humidity_class is not None
+        else f"RH {spec.interior_relative_humidity:g}"
+    )
+    return f"{spec.interior_temperature:g} degC and {rh} all year"
 
 
 def moisture_disagreement(v: VariantResult) -> str:
@@ -835,11 +848,10 @@ def retrofit(
         if settings is not None:
             from . import moisture_risk as mr
 
-            base_ids = frozenset(layer.id for layer in base.layers)
-            hygro = mr.run_wall(w, settings, _layer_path(v, w), base_ids=base_ids)
+            hygro = mr.run_wall(w, settings, _layer_path(v, w))
             if smp is not None:  # each draw from the point wall's periodic end state
                 draws = [apply_variant(sw, v) for sw in smp.walls]
-                sample_moisture = mr.run_draws(draws, settings, hygro.final_state, base_ids)
+                sample_moisture = mr.run_draws(draws, settings, hygro.final_state)
         u = iso6946.thermal_resistance(
             w, rsi=1.0 / spec.interior_surface_coefficient, rse=1.0 / spec.exterior_surface_coefficient
         ).u_value
