@@ -346,7 +346,7 @@ HAMSTAD1_BANDS = {
 #: where ``wallcal verify hamstad1`` looks for them without ``--data``, relative to the repository's root
 HAMSTAD1_DATA = Path("..") / "shared" / "data" / "ham" / "hamstad"
 #: where they are public
-HAMSTAD1_SOURCE = "the HAMSTAD archive's HB1 folder, public in LBNL-ETA/HygroThermFEM tst/units/validation/hamstad"
+HAMSTAD1_SOURCE = "HAMSTAD archive, HB1/; public in LBNL-ETA/HygroThermFEM tst/units/validation/hamstad"
 #: the years HAMSTAD 1 runs (the climate file's year, repeated)
 HAMSTAD1_YEARS = 5
 #: HAMSTAD 1's layers [m], exterior first: the load-bearing layer (A), the insulation (B)
@@ -443,9 +443,12 @@ def load_hamstad1(data_dir: str | Path | None = None) -> Hamstad1Data:
     missing = hamstad1_missing(data_dir)
     if missing:
         where = folder if data_dir is not None else HAMSTAD1_DATA
+        bands = list(HAMSTAD1_BANDS.values())
+        if all(b in missing for b in bands):  # name the four at once
+            missing = [m for m in missing if m not in bands] + ["Bench1Year{1,5}_M{A,B}.csv"]
         raise StudyError(
             [
-                f"case 'hamstad1': needs its climate file and bands, missing in {where}: {', '.join(missing)} "
+                f"case 'hamstad1': its climate file and bands are missing in {where}: {', '.join(missing)} "
                 f"({HAMSTAD1_SOURCE}); give their folder with --data DIR"
             ]
         )
