@@ -151,3 +151,13 @@ def test_verify_without_cases_leaves_hamstad1_out_when_its_data_are_missing(tmp_
     write_data(tmp_path)
     assert main(["verify", "--data", str(tmp_path), "--out", str(tmp_path / "b")]) == 0
     assert ran[2:] == ["en15026", "hamstad1", "hamstad2"]
+
+
+def test_verify_counts_many_failed_hours_by_quantity_and_prints_the_first_ones(tmp_path, capsys):
+    write_data(tmp_path)
+    write_band(tmp_path / "Bench1Year1_MA.csv", 20.0, 30.0)  # every hour of year 1 outside: 49 failures
+    assert main(["verify", "hamstad1", "--data", str(tmp_path), "--out", str(tmp_path / "v")]) == 1
+    out = capsys.readouterr().out
+    assert "by quantity" in out and "(the first 30)" in out
+    v = pd.read_csv(tmp_path / "v" / "verification.csv")
+    assert (~v["passed"]).sum() == HOURS + 1
