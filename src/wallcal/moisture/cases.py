@@ -1,15 +1,16 @@
-"""The verification cases: EN 15026:2007 Annex A and HAMSTAD benchmarks 2 and 5.
+"""The verification cases: EN 15026:2007 Annex A and HAMSTAD benchmarks 1, 2 and 5.
 
 Each case builds its layers, boundaries and initial state from the published definitions (the materials
 below), runs :func:`wallcal.moisture.solver.solve` and compares with the bundled reference tables
-(``data/``, see ``data/README.md`` for their sources). :func:`run_case` returns the comparison rows
-and the profiles; it writes nothing.
+(``data/``, see ``data/README.md`` for their sources). HAMSTAD 1 reads its hourly climate and the
+participants' bands from a folder (:func:`load_hamstad1`); wallcal ships neither. :func:`run_case` returns
+the comparison rows and the profiles; it writes nothing.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
 
@@ -24,6 +25,7 @@ from .materials import (
     exp_polynomial,
     resistance_factor_hamstad,
     rh_from_suction,
+    saturation_pressure,
     van_genuchten,
 )
 from .solver import Boundary, HamResult, Layer, make_grid, solve
@@ -128,6 +130,8 @@ class CaseRun:
     profiles: pd.DataFrame
     result: HamResult
     seconds: float
+    #: a case's time series, when it has one (HAMSTAD 1: ``time_s, M_A, M_B``)
+    series: pd.DataFrame | None = None
 
 
 def _profile_at(result: HamResult, k: int, x: float, values: np.ndarray) -> float:
@@ -329,18 +333,234 @@ def _finish(name: str, rows: list[dict], res: HamResult, start: float) -> CaseRu
     return CaseRun(name, checks, _profiles(res), res, time.perf_counter() - start)
 
 
-CASES = {"en15026": en15026, "hamstad2": hamstad2, "hamstad5": hamstad5}
-#: cases of the benchmark set that cannot run yet, and why
-UNAVAILABLE = {
-    "hamstad1": "needs the benchmark's hourly climate file (exterior equivalent temperature, interior temperature, "
-    "vapour pressures), which is not among the bundled reference data"
+# ============================================================================ HAMSTAD 1
+#: HAMSTAD 1's files, by the archive's names (``HB1/``): the hourly climate and the participants' 99.9 %
+#: bands of M_A and M_B for the first and the fifth year
+HAMSTAD1_CLIMATE = "ClimateBench1.txt"
+HAMSTAD1_BANDS = {
+    (1, "M_A"): "Bench1Year1_MA.csv",
+    (1, "M_B"): "Bench1Year1_MB.csv",
+    (5, "M_A"): "Bench1Year5_MA.csv",
+    (5, "M_B"): "Bench1Year5_MB.csv",
 }
+#: where ``wallcal verify hamstad1`` looks for them without ``--data``, relative to the repository's root
+HAMSTAD1_DATA = Path("..") / "shared" / "data" / "ham" / "hamstad"
+#: where they are public
+HAMSTAD1_SOURCE = "HAMSTAD archive, HB1/; public in LBNL-ETA/HygroThermFEM tst/units/validation/hamstad"
+#: the years HAMSTAD 1 runs (the climate file's year, repeated)
+HAMSTAD1_YEARS = 5
+#: HAMSTAD 1's layers [m], exterior first: the load-bearing layer (A), the insulation (B)
+HAMSTAD1_THICKNESS = (0.10, 0.05)
+_BAND_COLUMNS = {"time (h)": "hour", "Average": "average", "CI-(p=0.1%)": "lower", "CI+(p=0.1%)": "upper"}
 
 
-def run_case(name: str) -> CaseRun:
-    """Run one verification case by name."""
-    if name in UNAVAILABLE:
-        raise StudyError([f"case {name!r}: not available: {UNAVAILABLE[name]}"])
+def hamstad1_materials() -> tuple[HygricMaterial, HygricMaterial]:
+    """HAMSTAD 1: the load-bearing layer (EN 15026 Annex A's material) and the capillary-inactive insulation
+    (w_sat 900 kg/m3, van Genuchten a = 2e-4 /Pa, n = 2, m = 0.5; mu_dry 9.6 with HAMSTAD's f(w), p = 0.497;
+    lambda = 0.033 + 0.59e-3 w; rho c = 0.0739e6 J/(m3 K); no liquid transport)."""
+    insulation = HygricMaterial(
+        name="HAMSTAD 1 insulation",
+        storage=van_genuchten(900.0, [(1.0, 2e-4, 2.0, 0.5)]),
+        lambda_dry=0.033,
+        lambda_w=0.59e-3,
+        rho_c_dry=0.0739e6,
+        resistance_factor=resistance_factor_hamstad(9.6, 900.0, 0.497),
+    )
+    return en15026_material(), insulation
+
+
+@dataclass
+class Hamstad1Data:
+    """HAMSTAD 1's inputs: the climate (``time_s, t_ext, t_int, p_ext, p_int``: equivalent exterior and
+    interior temperatures [degC], exterior and interior vapour pressures [Pa]) and the bands (``hour, average,
+    lower, upper`` [kg/m2], hours from the start of their year) by ``(year, "M_A" | "M_B")``."""
+
+    folder: Path
+    climate: pd.DataFrame
+    bands: dict[tuple[int, str], pd.DataFrame]
+
+
+def hamstad1_folder(data_dir: str | Path | None = None) -> Path:
+    """The folder HAMSTAD 1's files are read from: ``data_dir``, or :data:`HAMSTAD1_DATA` beside the
+    repository."""
+    if data_dir is not None:
+        return Path(data_dir)
+    return Path(__file__).resolve().parents[3] / HAMSTAD1_DATA
+
+
+def hamstad1_missing(data_dir: str | Path | None = None) -> list[str]:
+    """The names of HAMSTAD 1's files missing from its folder (empty: it can run)."""
+    folder = hamstad1_folder(data_dir)
+    return [n for n in (HAMSTAD1_CLIMATE, *HAMSTAD1_BANDS.values()) if not (folder / n).is_file()]
+
+
+def _read_climate(path: Path) -> pd.DataFrame:
+    try:
+        raw = pd.read_csv(path, sep=r"\s+", header=None, dtype=float, comment="#")
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
+        raise StudyError([f"{path.name}: not a table of numbers ({str(e).splitlines()[0][:120]})"]) from None
+    if raw.shape[1] != 5 or len(raw) < 2:
+        raise StudyError(
+            [
+                f"{path.name}: need rows of 5 numbers (time s, T_eq,e C, T_eq,i C, p_a,e Pa, p_a,i Pa), at least 2; "
+                f"got {len(raw)} rows of {raw.shape[1]}"
+            ]
+        )
+    clim = raw.set_axis(["time_s", "t_ext", "t_int", "p_ext", "p_int"], axis=1)
+    t = clim["time_s"].to_numpy()
+    if not np.all(np.isfinite(clim.to_numpy())):
+        raise StudyError([f"{path.name}: a value is not finite"])
+    if t[0] != 0.0 or np.any(np.diff(t) <= 0):
+        raise StudyError([f"{path.name}: column 1 (time [s]) must start at 0 and increase"])
+    for c, k in (("p_ext", 4), ("p_int", 5)):
+        if np.any(clim[c] <= 0):
+            raise StudyError([f"{path.name}: column {k} (vapour pressure [Pa]) must be > 0"])
+    return clim
+
+
+def _read_band(path: Path) -> pd.DataFrame:
+    try:
+        raw = pd.read_csv(path)
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
+        raise StudyError([f"{path.name}: not a CSV table ({str(e).splitlines()[0][:120]})"]) from None
+    missing = [c for c in _BAND_COLUMNS if c not in raw.columns]
+    if missing:
+        raise StudyError([f"{path.name}: missing column(s) {', '.join(missing)}"])
+    band = raw[list(_BAND_COLUMNS)].rename(columns=_BAND_COLUMNS)
+    values = band.apply(pd.to_numeric, errors="coerce")
+    if values.isna().any().any() or len(values) == 0:
+        raise StudyError([f"{path.name}: the columns {', '.join(_BAND_COLUMNS)} need a number on every row"])
+    if np.any(np.diff(values["hour"].to_numpy()) <= 0) or values["hour"].iloc[0] < 0:
+        raise StudyError([f"{path.name}: column 'time (h)' must be >= 0 and increase"])
+    return values.astype(float)
+
+
+def load_hamstad1(data_dir: str | Path | None = None) -> Hamstad1Data:
+    """Read HAMSTAD 1's climate and bands from :func:`hamstad1_folder`; a one-line
+    :class:`~wallcal.errors.StudyError` naming the missing files and where they are public when any is
+    missing."""
+    folder = hamstad1_folder(data_dir)
+    missing = hamstad1_missing(data_dir)
+    if missing:
+        where = folder if data_dir is not None else HAMSTAD1_DATA
+        bands = list(HAMSTAD1_BANDS.values())
+        if all(b in missing for b in bands):  # name the four at once
+            missing = [m for m in missing if m not in bands] + ["Bench1Year{1,5}_M{A,B}.csv"]
+        raise StudyError(
+            [
+                f"case 'hamstad1': its climate file and bands are missing in {where}: {', '.join(missing)} "
+                f"({HAMSTAD1_SOURCE}); give their folder with --data DIR"
+            ]
+        )
+    climate = _read_climate(folder / HAMSTAD1_CLIMATE)
+    bands = {key: _read_band(folder / name) for key, name in HAMSTAD1_BANDS.items()}
+    return Hamstad1Data(folder, climate, bands)
+
+
+def _repeat_climate(climate: pd.DataFrame, years: int) -> tuple[np.ndarray, np.ndarray]:
+    """The climate's rows repeated ``years`` times: its last row is the next year's first instant (HAMSTAD's
+    file runs from hour 0 to 8760), so each year takes the rows but the last, and the run ends on the last."""
+    period = float(climate["time_s"].iloc[-1])
+    values = climate.drop(columns="time_s").to_numpy()
+    t = climate["time_s"].to_numpy()
+    times = np.concatenate([t[:-1] + y * period for y in range(years)] + [[years * period]])
+    rows = np.concatenate([values[:-1]] * years + [values[-1:]])
+    return times, rows
+
+
+def hamstad1_run(data: Hamstad1Data, years: int = HAMSTAD1_YEARS):
+    """Run HAMSTAD 1 over ``years`` repetitions of the climate file, output hourly.
+
+    The load-bearing layer (100 mm) is sealed and exchanges heat only on the exterior (alpha_e 25 W/(m2 K)
+    with the climate's equivalent exterior temperature; its vapour pressure is passed but ``beta = 0``), the
+    insulation (50 mm) exchanges heat and vapour with the room (alpha_i 7, beta_p,i 2e-8 s/m, the climate's
+    interior temperature and vapour pressure). Initial state: 145 kg/m3 (A), 0.065 kg/m3 (B), 10 degC.
+    Returns ``(result, grid, series)`` with ``series`` the layers' moisture ``M_A, M_B`` [kg/m2] at each hour
+    (``time_s``)."""
+    load_bearing, insulation = hamstad1_materials()
+    grid = make_grid(
+        [Layer(load_bearing, HAMSTAD1_THICKNESS[0]), Layer(insulation, HAMSTAD1_THICKNESS[1])],
+        first=1e-4,
+        ratio=1.2,
+        max_cell=5e-3,
+    )
+    times, rows = _repeat_climate(data.climate, years)
+    t_ext, t_int, p_ext, p_int = rows.T
+    ext = Boundary(
+        "air",
+        t_ext,
+        np.clip(p_ext / saturation_pressure(t_ext), 1e-6, 1.0),  # no effect: beta = 0
+        times=times,
+        h=25.0,
+        beta=0.0,
+    )
+    inn = Boundary("air", t_int, p_int / saturation_pressure(t_int), times=times, h=7.0, beta=2e-8)
+    w0 = np.where(grid.mat == 0, 145.0, 0.065)
+    out = np.arange(0.0, times[-1] + 0.5 * HOUR, HOUR)
+    if out[-1] < times[-1]:
+        out = np.append(out, times[-1])
+    res = solve(grid, ext, inn, 10.0, None, out, initial_water_content=w0, dt_max=HOUR)
+    weights = np.stack([np.where(grid.mat == k, grid.dx, 0.0) for k in (0, 1)], axis=1)
+    m = res.water_content @ weights
+    series = pd.DataFrame({"time_s": res.times, "M_A": m[:, 0], "M_B": m[:, 1]})
+    return res, grid, series
+
+
+def _take(res: HamResult, idx: np.ndarray) -> HamResult:
+    """The result at the output times ``idx`` only."""
+    per_time = (
+        "times",
+        "temperature",
+        "potential",
+        "relative_humidity",
+        "water_content",
+        "inflow",
+        "runoff",
+        "face_flux",
+        "mass_balance_error",
+        "energy_balance_error",
+    )
+    return replace(res, **{f: getattr(res, f)[idx] for f in per_time})
+
+
+def hamstad1(data_dir: str | Path | None = None) -> CaseRun:
+    """HAMSTAD 1: insulated roof, 5 years of the hourly climate; M_A and M_B hour by hour against the
+    participants' 99.9 % band for years 1 and 5.
+
+    The data (:data:`HAMSTAD1_CLIMATE`, :data:`HAMSTAD1_BANDS`) are read from ``data_dir`` or from
+    :data:`HAMSTAD1_DATA` beside the repository; wallcal ships neither. The run's length follows the climate
+    file (its last time is one year). Rows ``M_A`` / ``M_B``: ``day`` from the start of the run, ``x_m``
+    empty (a layer's integral), the band's CI- and CI+ as limits; the band's hours count from the start of
+    their year (year 5 starts at 4 climate periods). Balance errors and profiles every half period."""
+    start = time.perf_counter()
+    data = load_hamstad1(data_dir)
+    res, _, series = hamstad1_run(data)
+    period = float(data.climate["time_s"].iloc[-1])
+    rows = []
+    for (year, q), band in data.bands.items():
+        t = (year - 1) * period + band["hour"].to_numpy() * HOUR
+        keep = t <= series["time_s"].iloc[-1] + 1e-6
+        value = np.interp(t[keep], series["time_s"], series[q])
+        rows += [
+            {"case": "hamstad1", "quantity": q, "day": tk / DAY, "x_m": np.nan, "value": v, "lower": lo, "upper": hi}
+            for tk, v, lo, hi in zip(t[keep], value, band["lower"][keep], band["upper"][keep], strict=True)
+        ]
+    ref = np.searchsorted(res.times, np.arange(2 * HAMSTAD1_YEARS + 1) * 0.5 * period - 1e-6)
+    sub = _take(res, np.unique(np.minimum(ref, res.times.size - 1)))
+    rows += _balance_rows("hamstad1", sub, sub.times / DAY)
+    run = _finish("hamstad1", rows, sub, start)
+    run.series = series
+    return run
+
+
+CASES = {"en15026": en15026, "hamstad1": hamstad1, "hamstad2": hamstad2, "hamstad5": hamstad5}
+
+
+def run_case(name: str, data_dir: str | Path | None = None) -> CaseRun:
+    """Run one verification case by name; ``data_dir`` is the folder of HAMSTAD 1's files (see
+    :func:`hamstad1`)."""
     if name not in CASES:
-        raise StudyError([f"case {name!r}: unknown; the cases are {', '.join([*CASES, *UNAVAILABLE])}"])
+        raise StudyError([f"case {name!r}: unknown; the cases are {', '.join(CASES)}"])
+    if name == "hamstad1":
+        return hamstad1(data_dir)
     return CASES[name]()
