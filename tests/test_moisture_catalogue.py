@@ -88,3 +88,17 @@ def test_hygric_keys_bad_input_is_one_line():
             density=1000,
             specific_heat=1000,
         )
+
+
+@pytest.mark.parametrize("value", [10**400, float("nan"), float("inf")])
+def test_hygric_table_entry_that_is_no_finite_number_names_its_key(value):
+    """An absorption coefficient too large for a float (or nan, inf) is refused under its own key path, not as
+    a malformed table."""
+    hygric = {
+        "vapour_resistance_factor": 5,
+        "moisture_storage": {"form": "kuenzel", "w_80": 1, "w_f": 10},
+        "liquid_transport": {"form": "kuenzel", "absorption": value},
+    }
+    with pytest.raises(StudyError) as exc:
+        hygric_material("x", hygric, conductivity=1, density=1000, specific_heat=1000)
+    assert any(".liquid_transport.absorption: must be finite" in p for p in exc.value.problems), exc.value.problems

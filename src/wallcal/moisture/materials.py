@@ -25,6 +25,7 @@ Bad input raises :class:`~wallcal.errors.StudyError` with one line naming the ma
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -430,6 +431,16 @@ def _numeric(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
+def _finite(v) -> bool:
+    """Whether every entry of a number or a list (of lists) of numbers is a finite float."""
+    if isinstance(v, list):
+        return all(_finite(x) for x in v)
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
 def _check_table(table: dict, kind: str, forms: tuple[str, ...], where: str) -> None:
     """Every problem of a ``kind`` table's shape at once: its ``form`` (a name of ``forms``), keys that form does
     not take (a misspelt key is never ignored) and water contents outside 0..:data:`MAX_WATER_CONTENT`."""
@@ -446,11 +457,18 @@ def _check_table(table: dict, kind: str, forms: tuple[str, ...], where: str) -> 
                     f"{where}.{kind}.{clip(str(key), 40)}: unknown key for form {form!r}"
                     + (f"; {hint}" if hint else "")
                 )
+    bad = set()
     for key, v in table.items():
-        if key != "form" and not _numeric(v):
+        if key == "form":
+            continue
+        if not _numeric(v):
             problems.append(f"{where}.{kind}.{clip(str(key), 40)}: must be a number or a list of numbers")
+            bad.add(key)
+        elif not _finite(v):
+            problems.append(f"{where}.{kind}.{clip(str(key), 40)}: must be finite numbers (no nan, inf or overflow)")
+            bad.add(key)
     for key in ("w_80", "w_f", "w_sat"):
-        if key in table and _numeric(table[key]):
+        if key in table and key not in bad:
             try:
                 _water(table, key, f"{where}.{kind}")
             except StudyError as exc:
