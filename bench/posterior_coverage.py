@@ -22,6 +22,7 @@ Campaigns (their walls and errors are printed):
     nice .venv/bin/python bench/posterior_coverage.py                  # all campaigns, both arms
     nice .venv/bin/python bench/posterior_coverage.py --campaigns visible offset --steps 600 --no-diagnose
     nice .venv/bin/python bench/posterior_coverage.py --steps 1000 --no-without     # only the 'with diagnose' arm
+    nice .venv/bin/python bench/posterior_coverage.py --hold-out 2 --no-diagnose --tempering sandwich  # + bands
 
 Also timed: the posterior of a 22-parameter space on the ``all`` campaign, ``--speed`` (target: under 2 minutes on
 2 cores): ``--speed-space lambdaT`` (the study's 18 plus a probe depth, a contact resistance and two lambda(T)
@@ -219,6 +220,21 @@ def study_of(name: str, workdir: Path) -> Path:
     return make_campaign(CAMPAIGNS[name], workdir / name)
 
 
+def hold_out(path: Path, days: float) -> None:
+    """Give the study file at ``path`` a held-out validation window: the last ``days`` of its period (the posterior
+    then predicts it: ``predictive`` in the rows, coverage and width of the 95 % band per sensor)."""
+    text = path.read_text()
+    end = pd.Timestamp(re.search(r"(?m)^end = (\S+)", text).group(1))
+    start = (end - pd.Timedelta(days=days)).isoformat()
+    text = re.sub(
+        r"(?m)^(end = \S+)",
+        lambda m: f"{m.group(1)}\nvalidation_start = {start}\nvalidation_end = {end.isoformat()}",
+        text,
+        count=1,
+    )
+    path.write_text(text)
+
+
 def diagnose_or_none():
     """``wallcal.analysis.diagnose.diagnose`` when this wallcal has it, else None."""
     try:
@@ -278,6 +294,11 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
                     ]
                 ),
                 "structure": r.structure["statement"],
+                "predictive": ""
+                if r.predictive is None
+                else "; ".join(
+                    f"{q.sensor} {q.coverage_95:.3f} ({q.band_width_95:.3g})" for q in r.predictive.table.itertuples()
+                ),
             }
         )
     return rows
@@ -297,6 +318,7 @@ def coverage(
     workdir: Path,
     start_at: str = "diagnose",
     without_diagnose: bool = True,
+    hold_out_days: float | None = None,
 ) -> pd.DataFrame:
     diagnose = diagnose_or_none() if with_diagnose else None
     if with_diagnose and diagnose is None:
@@ -304,6 +326,8 @@ def coverage(
     rows = []
     for name in names:
         path = study_of(name, workdir)
+        if hold_out_days:
+            hold_out(path, hold_out_days)
         study = wallcal.load_study(path)
         adopted = []
         d = None
@@ -336,6 +360,8 @@ def _show(r: dict) -> None:
     )
     if r["missed"]:
         print(f"         missed at 95 %: {r['missed']}", flush=True)
+    if r["predictive"]:
+        print(f"         held-out window, coverage of the 95 % band (its width): {r['predictive']}", flush=True)
 
 
 def totals(df: pd.DataFrame) -> pd.DataFrame:
@@ -408,6 +434,13 @@ def main() -> None:
         default="all",
         help="the campaign whose posterior --speed times (all: its structure is not the space's)",
     )
+    ap.add_argument(
+        "--hold-out",
+        type=float,
+        metavar="DAYS",
+        help="hold out the last DAYS of each campaign's period (fitted on the rest) and report the posterior "
+        "predictive band's coverage there",
+    )
     ap.add_argument("--workdir", help="keep the synthetic campaigns here (default: a temporary folder)")
     ap.add_argument("--csv", help="write the per-campaign rows here")
     args = ap.parse_args()
@@ -433,6 +466,7 @@ def main() -> None:
             workdir,
             args.start,
             without_diagnose=not args.no_without,
+            hold_out_days=args.hold_out,
         )
         if args.csv:
             df.to_csv(args.csv, index=False)

@@ -153,8 +153,8 @@ def test_passys_as_measured_adopts_only_what_the_window_confirms(tmp_path):
 # ---------------------------------------------------------------------------- posterior predictive bands
 @pytest.mark.slow
 def test_posterior_predictive_trh(trh, tmp_path):
-    """The posterior predicts the held-out window from its draws plus the error model: validation.csv with the
-    band's coverage and width, predictive.csv per timestamp and sensor; --predict any other period (modest
+    """The posterior predicts the held-out window from its draws plus their fitted-period errors: validation.csv
+    with the band's coverage and width, predictive.csv per timestamp and sensor; --predict any other period (modest
     chain settings: the bands, not the chain, are under test)."""
     from wallcal.analysis.posterior import posterior
     from wallcal.cli import main
@@ -169,9 +169,10 @@ def test_posterior_predictive_trh(trh, tmp_path):
     assert list(v.columns) == ["rmse", "mbe", "n", "coverage_95", "band_width_95"]
     row = v.loc["interface"]
     assert row["n"] == 2016 and row["rmse"] <= 0.25
-    # measured figures (docs/identifiability.md): coverage 1.00 with a 0.90 K band - the fitted period's errors
-    # (sigma 0.23 K) are larger than the held-out period's (0.14 K): wider than it should be
-    assert 0.85 <= row["coverage_95"] and 0.5 < row["band_width_95"] < 1.5
+    # measured figures (docs/identifiability.md, default chain): coverage 0.999 with a 0.83 K band (0.90 K with the
+    # Gaussian AR(1) band before) - the fitted period's errors (RMSE 0.24 K) are larger than the window's (0.15 K),
+    # so the upper limit of 99 % is not met and not asserted
+    assert 0.85 <= row["coverage_95"] and 0.5 < row["band_width_95"] < 0.87, row
     b = pd.read_csv(tmp_path / "predictive.csv")
     assert list(b.columns) == ["timestamp", "sensor", "measured", "median", "p2.5", "p97.5"]
     assert len(b) == 2016 and (b["p2.5"] <= b["median"]).all() and (b["median"] <= b["p97.5"]).all()
@@ -187,9 +188,10 @@ def test_posterior_predictive_trh(trh, tmp_path):
 @pytest.mark.slow
 def test_posterior_predictive_passys_as_measured():
     """PASSYS with the face offset at 0, the structure diagnose adopts (offset[faces]): the 95 % bands cover at least
-    85 % of the held-out points of every temperature sensor. They are too wide (measured 1.00, 0.99, 1.00 with
-    bands of 2.5-2.9 K; docs/identifiability.md): the fitted period's errors (sigma 0.62-0.77 K) exceed the held-out
-    period's (0.40-0.60 K), so the upper limit of 99 % is not met and not asserted."""
+    85 % of the held-out points of every temperature sensor. They are too wide (default chain: 1.00, 1.00, 0.96 with
+    bands of 2.1-2.7 K, 2.5-3.1 K with the Gaussian AR(1) band before; docs/identifiability.md): the fitted period's
+    errors (RMSE 0.63-0.77 K) exceed the window's (0.41-0.56 K), so the upper limit of 99 % is not met and not
+    asserted."""
     from wallcal.analysis.posterior import posterior
 
     st = load_study(PASSYS)
@@ -204,7 +206,7 @@ def test_posterior_predictive_passys_as_measured():
     )
     v = p.predictive.table.set_index("sensor")
     for t in ("T_4", "T_8", "T_12"):
-        assert 0.85 <= v.loc[t, "coverage_95"] and v.loc[t, "band_width_95"] < 3.5, v
+        assert 0.85 <= v.loc[t, "coverage_95"] and v.loc[t, "band_width_95"] < 3.0, v
         assert v.loc[t, "rmse"] < 0.7
 
 

@@ -273,7 +273,7 @@ def posterior(
     max_steps : int, optional
         Longest default chain (when ``steps`` is not given) [steps] (default :data:`DEFAULT_MAX_STEPS`).
     predict : (start, end), optional
-        Predict this period of the study's data from the draws plus the error model
+        Predict this period of the study's data from the draws plus their fitted-period errors
         (:func:`~wallcal.analysis.posterior_predictive.predictive`; ``predictive.csv``); default the study's
         validation window, if any (then also ``validation.csv`` with ``coverage_95`` and ``band_width_95``).
     predictive_draws : int, optional
@@ -450,9 +450,6 @@ def posterior(
         space,
         res.samples,
         ev,
-        sig,
-        ph,
-        tau,
         window=predict,
         draws=predictive_draws or PREDICTIVE_DRAWS,
         seed=seed,

@@ -163,7 +163,7 @@ def register(sub) -> None:
         "--predict",
         nargs=2,
         metavar=("START", "END"),
-        help="predict this period of the study's data from the draws plus the error model (predictive.csv, "
+        help="predict this period of the study's data from the draws plus their fitted-period errors (predictive.csv, "
         "predictive_summary.csv); default the study's validation window (predictive.csv, validation.csv)",
     )
     p.add_argument("--out", metavar="DIR", help="default: posterior/ next to the study")
