@@ -8,6 +8,10 @@ entry must have its kind, shape and range (finite numbers, unit coordinates in [
 last row is the stored best ...). The caller then re-evaluates the stored best point
 (:func:`check_values`): it must reproduce its stored objective. Every problem is one
 :class:`CheckpointError` line that says how to start afresh.
+
+The helpers for where a checkpoint lives and how it is written, read and removed (:func:`checkpoint_path`,
+:func:`present`, :func:`write_bytes`, :func:`read_bytes`, :func:`remove`) also serve ``wallcal retrofit``'s
+checkpoint of its posterior draws (:mod:`wallcal.retrofitting.run`).
 """
 
 from __future__ import annotations
@@ -49,17 +53,35 @@ class CheckpointError(WallcalError):
         super().__init__(msg[:MAX_MESSAGE])
 
 
-def checkpoint_path(out_dir) -> Path | None:
-    """The checkpoint of output directory ``out_dir``: ``.<name>.checkpoint.json`` beside it (None without one)."""
+def checkpoint_path(out_dir, suffix: str = "checkpoint.json") -> Path | None:
+    """The checkpoint of output directory ``out_dir``: ``.<name>.<suffix>`` beside it (None without one).
+
+    ``suffix``: ``checkpoint.json`` for ``wallcal calibrate``; other commands name their own
+    (``retrofit-checkpoint.npz``)."""
     if out_dir is None:
         return None
     out_dir = Path(out_dir).resolve()
-    return out_dir.parent / f".{out_dir.name}.checkpoint.json"
+    return out_dir.parent / f".{out_dir.name}.{suffix}"
 
 
 def present(path: Path | None) -> bool:
     """Whether anything (a file, a directory, a dangling link ...) stands at the checkpoint's path."""
     return path is not None and (path.exists() or path.is_symlink())
+
+
+def write_bytes(path: Path, data: bytes) -> None:
+    """Write a checkpoint atomically: a new file of our own beside it (never one planted at a fixed name), renamed
+    over it; :func:`remove` also clears such a temporary file left by a killed run."""
+    import tempfile
+
+    fd, tmp = tempfile.mkstemp(prefix=f"{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def remove(path: Path | None) -> None:
@@ -78,7 +100,9 @@ def _short(v) -> str:
     return s if len(s) <= 40 else s[:37] + "..."
 
 
-def _read(path: Path) -> dict:
+def read_bytes(path: Path) -> bytes:
+    """A checkpoint's bytes, read only when it is a regular file (not a symbolic link, a directory or a pipe), not
+    empty and at most :data:`MAX_BYTES`; else :class:`CheckpointError`."""
     try:
         st = os.lstat(path)
     except OSError as exc:
@@ -101,6 +125,11 @@ def _read(path: Path) -> dict:
             raw = fh.read(MAX_BYTES + 1)
     except OSError as exc:
         raise CheckpointError(path, f"cannot be read ({exc.strerror})") from None
+    return raw
+
+
+def _read(path: Path) -> dict:
+    raw = read_bytes(path)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:

@@ -15,7 +15,8 @@ def register(sub) -> None:
         description="Run every [[retrofit.variants]] of the study over the [retrofit] weather year from a "
         "periodic state. Writes variants.csv (U, annual loss with its 5-95 %% interval over posterior draws, "
         "saving, peak loss, minimum interior surface temperature, f_Rsi, ISO 13788 condensation), per-variant "
-        "hourly_<k>.csv and glaser_<k>.csv, retrofit.json and figures. See docs/retrofit.md.",
+        "hourly_<k>.csv and glaser_<k>.csv, retrofit.json and figures. With posterior draws the draws done are "
+        "saved beside --out as they finish: after an interruption --resume continues. See docs/retrofit.md.",
     )
     p.add_argument("study", help="study file (TOML) with a [retrofit] table")
     src = p.add_mutually_exclusive_group()
@@ -28,13 +29,22 @@ def register(sub) -> None:
     )
     p.add_argument("--out", metavar="DIR", help="output directory (default: retrofit/ next to the study)")
     p.add_argument("--samples", type=int, metavar="N", help="posterior draws used (default: retrofit.samples)")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run: take the posterior draws already done from the checkpoint beside --out",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    import sys
+
+    from ..calibration.checkpoint import present
     from ..errors import StudyError
-    from ..retrofitting.run import retrofit
+    from ..outputs import clean_stale
+    from ..retrofitting.run import checkpoint_path, retrofit
     from ..study import load_study, load_wall
 
     study = load_study(args.study)
@@ -42,7 +52,35 @@ def run(args) -> int:
         raise StudyError([f"--samples: must be >= 1, got {args.samples}"])
     wall = load_wall(args.wall) if args.wall else None
     out = Path(args.out) if args.out else Path(args.study).resolve().parent / "retrofit"
-    res = retrofit(study, wall=wall, from_dir=args.from_dir, out=out, samples=args.samples, progress=not args.quiet)
+    clean_stale(out)  # what a killed run left next to --out (temporary directories)
+    ckpt = checkpoint_path(out)
+    resume = args.resume
+    if resume and not present(ckpt):
+        if _complete_output(out, study):
+            print(f"nothing to resume: {out} holds the complete retrofit run; run without --resume to run it again")
+            return 0
+        print(f"no checkpoint of {out} (the run stopped before its first): running from the start", file=sys.stderr)
+        resume = False
+    before = _stamp(ckpt)
+    try:
+        res = retrofit(
+            study,
+            wall=wall,
+            from_dir=args.from_dir,
+            out=out,
+            samples=args.samples,
+            progress=not args.quiet,
+            resume=resume,
+        )
+    except KeyboardInterrupt:
+        if _stamp(ckpt) in (None, before):  # stopped before the draws' checkpoint was written or taken up
+            raise
+        print(f"wallcal: interrupted; nothing was written to {out}. {_saved(args, ckpt)}", file=sys.stderr)
+        return 130
+    except Exception:  # a lost cluster, a killed worker ...: the draws saved so far are kept
+        if _stamp(ckpt) not in (None, before) and not getattr(args, "debug", False):
+            print(_saved(args, ckpt), file=sys.stderr)
+        raise
     tab = res.table().set_index("variant")
     print(f"{study.name or Path(args.study).name}: {len(res.variants)} variant(s), {res.seconds:.1f} s")
     print()
@@ -77,3 +115,48 @@ def run(args) -> int:
         print(f"- {note}")
     print(f"\nwrote {out}/variants.csv and the per-variant series and figures")
     return 0
+
+
+def _saved(args, ckpt) -> str:
+    """Where the draws done so far are and the command that continues."""
+    import shlex
+
+    cmd = ["wallcal", "retrofit", args.study]
+    if args.wall:
+        cmd += ["--wall", args.wall]
+    if args.from_dir:
+        cmd += ["--from", args.from_dir]
+    if args.out:
+        cmd += ["--out", args.out]
+    if args.samples is not None:
+        cmd += ["--samples", str(args.samples)]
+    cmd.append("--resume")
+    return f"The posterior draws done so far are saved in {ckpt}; continue with: {shlex.join(cmd)}"
+
+
+def _stamp(path):
+    """The checkpoint file's identity (inode, modification time), None without one: it changes when the run writes
+    it (atomically: a new file each time)."""
+    import os
+
+    try:
+        st = os.stat(path)
+    except (OSError, TypeError):
+        return None
+    return st.st_ino, st.st_mtime_ns
+
+
+def _complete_output(out: Path, study) -> bool:
+    """Whether ``out`` holds a complete retrofit output of this study file (its manifest says so)."""
+    import json
+
+    try:
+        man = json.loads((out / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return (
+        isinstance(man, dict)
+        and man.get("command") == "retrofit"
+        and man.get("study_sha256") == study.sha256
+        and (out / "variants.csv").is_file()
+    )

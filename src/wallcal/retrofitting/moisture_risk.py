@@ -604,12 +604,25 @@ def draw_task(task) -> tuple[float, float, int, float]:
     return r.mould_max, r.trend, r.years, time.process_time() - cpu
 
 
-def run_draws(walls, settings: RunSettings, initial) -> np.ndarray:
+def run_draws(
+    walls, settings: RunSettings, initial, *, done=None, chunk: int | None = None, on_chunk=None
+) -> np.ndarray:
     """Every draw's (mould index, trend, years, CPU seconds), on the active :class:`wallcal.cluster.Executor` when
-    there is one, else one after the other here. ``initial``: the point wall's end state (the draws start from it)."""
+    there is one, else one after the other here. ``initial``: the point wall's end state (the draws start from it).
+
+    ``done``: the rows of the first draws, already run (a resumed run's), not run again; ``chunk``: draws run per
+    call of the executor (default: all at once); ``on_chunk(rows)``: called after each chunk with the rows of every
+    draw run so far (to save them and show progress)."""
     from ..cluster import current_executor
 
-    tasks = [(w, settings, initial) for w in walls]
+    out = np.asarray(done if done is not None else np.zeros((0, 4)), dtype=float).reshape(-1, 4)
+    tasks = [(w, settings, initial) for w in walls[len(out) :]]
     ex = current_executor()
-    out = ex.map(draw_task, tasks) if ex is not None and len(tasks) > 1 else [draw_task(t) for t in tasks]
-    return np.array(out, dtype=float).reshape(len(tasks), 4)
+    step = max(1, len(tasks) if chunk is None else int(chunk))
+    for i in range(0, len(tasks), step):
+        part = tasks[i : i + step]
+        rows = ex.map(draw_task, part) if ex is not None and len(part) > 1 else [draw_task(t) for t in part]
+        out = np.concatenate([out, np.array(rows, dtype=float).reshape(len(part), 4)])
+        if on_chunk is not None:
+            on_chunk(out)
+    return out.reshape(len(walls), 4)

@@ -19,10 +19,18 @@ Uncertainty: with posterior samples every variant runs for every sample (the sam
 to the base wall, then the variant's changes) in one batch call of the engine; p05 and p95 are the 5 % and
 95 % quantiles of the samples' annual losses, and the Spearman rank correlation of each sampled property
 with the annual loss says which properties make the spread.
+
+Checkpoint: with posterior draws and an output directory, the draws' results so far (each variant's thermal
+losses, its moisture draws in chunks of ``DRAW_CHUNK_PER_WORKER`` per executor worker) are saved atomically after
+each chunk to ``.<out>.retrofit-checkpoint.npz`` beside the output directory (:class:`DrawCheckpoint`), with the
+inputs that determine them; ``resume=True`` takes them from there instead of running them again, and the
+checkpoint is removed once the outputs are written.
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import math
 import time
@@ -694,6 +702,104 @@ def _frsi(wall: Wall, spec: RetrofitSpec) -> float:
     return temperature_factor(wall, rse=1.0 / spec.exterior_surface_coefficient)
 
 
+# ============================================================================ the draws' checkpoint
+#: moisture draws per executor worker (one worker without an executor) in a chunk; the checkpoint is saved after each
+DRAW_CHUNK_PER_WORKER = 4
+#: the checkpoint beside the output directory: ``.<out>.retrofit-checkpoint.npz``; its format version
+CHECKPOINT_SUFFIX = "retrofit-checkpoint.npz"
+CHECKPOINT_FORMAT = 1
+
+
+def checkpoint_path(out) -> Path | None:
+    """The draws' checkpoint of output directory ``out`` (None without one)."""
+    from ..calibration.checkpoint import checkpoint_path as beside
+
+    return beside(out, CHECKPOINT_SUFFIX)
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def draw_inputs(study, spec: RetrofitSpec, weather: Weather, base: Wall, vwalls: list[Wall], smp) -> dict:
+    """What determines the draws' results, each as a hash (or a count), in the order a refusal names them."""
+    from ..wallfile import dump_wall
+
+    wpath = getattr(weather, "path", None)
+    if wpath is not None and Path(wpath).is_file():
+        weather_sha = _sha(Path(wpath).read_bytes())
+    else:
+        weather_sha = _sha(pd.util.hash_pandas_object(weather.data).to_numpy().tobytes())
+    return {
+        "study file": study.sha256 or "",
+        "[retrofit] table": _sha(repr(spec).encode()),
+        "weather file": weather_sha,
+        "wall": _sha("\n".join(dump_wall(w) for w in [base, *vwalls]).encode()),
+        "number of draws": len(smp.walls),
+        "posterior draws": _sha(
+            json.dumps(list(smp.names)).encode() + np.ascontiguousarray(smp.values, float).tobytes()
+        ),
+    }
+
+
+@dataclass
+class DrawCheckpoint:
+    """The posterior draws' results so far, by variant index: ``losses[k]`` the thermal draws' annual losses
+    [kWh/m2] (all or none), ``moisture[k]`` the rows of the moisture draws run so far (mould index, trend, years,
+    CPU seconds; the first ``len`` draws). Saved atomically to ``path`` with ``inputs`` (:func:`draw_inputs`)."""
+
+    path: Path
+    inputs: dict
+    variants: list[str]
+    losses: dict = field(default_factory=dict)
+    moisture: dict = field(default_factory=dict)
+
+    def save(self) -> None:
+        from ..calibration.checkpoint import write_bytes
+
+        meta = {"format": CHECKPOINT_FORMAT, "inputs": self.inputs, "variants": self.variants}
+        arrays = {f"losses_{k}": a for k, a in self.losses.items()}
+        arrays.update({f"moisture_{k}": a for k, a in self.moisture.items()})
+        buf = io.BytesIO()
+        np.savez(buf, meta=np.array(json.dumps(meta)), **arrays)
+        write_bytes(self.path, buf.getvalue())
+
+    @classmethod
+    def load(cls, path: Path, inputs: dict, variants: list[str]) -> DrawCheckpoint:
+        """Read and check a checkpoint for the run of ``inputs`` and ``variants``; :class:`CheckpointError` (one line
+        naming the file, what is wrong and how to start afresh) on anything that does not fit."""
+        from ..calibration.checkpoint import CheckpointError, read_bytes
+
+        raw = read_bytes(path)
+        try:
+            with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+                arrays = {key: z[key] for key in z.files}
+            meta = json.loads(str(arrays.pop("meta")))
+        except Exception as exc:  # a damaged file: whatever numpy or json raise
+            raise CheckpointError(path, f"not a retrofit checkpoint (damaged? {type(exc).__name__})") from None
+        if not isinstance(meta, dict) or meta.get("format") != CHECKPOINT_FORMAT:
+            fmt = meta.get("format") if isinstance(meta, dict) else None
+            raise CheckpointError(path, f"format {fmt!r}, this wallcal reads format {CHECKPOINT_FORMAT}")
+        old = meta.get("inputs") if isinstance(meta.get("inputs"), dict) else {}
+        for what, value in inputs.items():
+            if old.get(what) != value:
+                raise CheckpointError(path, f"it was made with another {what}")
+        if meta.get("variants") != variants:
+            raise CheckpointError(path, "it was made for other retrofit variants")
+        n = inputs["number of draws"]
+        ck = cls(path, inputs, variants)
+        for key, a in arrays.items():
+            kind, _, k = key.partition("_")
+            ok = kind in ("losses", "moisture") and k.isdigit() and int(k) < len(variants)
+            shape_ok = a.ndim == 1 and len(a) == n if kind == "losses" else a.ndim == 2 and a.shape[1] == 4
+            if not (ok and shape_ok and a.dtype == float and len(a) <= n):
+                raise CheckpointError(path, f"unexpected entry {key!r} of shape {a.shape}")
+            if kind == "losses" and not np.all(np.isfinite(a)):
+                raise CheckpointError(path, f"{key} holds a value that is not a finite number")
+            (ck.losses if kind == "losses" else ck.moisture)[int(k)] = a
+        return ck
+
+
 # ============================================================================ the moisture run's set-up
 def _layer_path(v: VariantSpec, wall: Wall):
     """``k -> key path`` of layer k of a variant's wall (the variant's added or replaced layer, else the wall's)."""
@@ -752,7 +858,7 @@ def _moisture_setup(study, spec: RetrofitSpec, weather, yb, base: Wall, source: 
 
 # ============================================================================ the entry point
 def retrofit(
-    study, *, wall=None, from_dir=None, out=None, samples=None, progress=False, wall_source=None
+    study, *, wall=None, from_dir=None, out=None, samples=None, progress=False, wall_source=None, resume=False
 ) -> RetrofitResult:
     """Run every ``[retrofit]`` variant of a study over its weather year.
 
@@ -769,9 +875,18 @@ def retrofit(
     samples : int, optional
         At most this many posterior draws; default ``retrofit.samples``.
     progress : bool
-        Print a line per variant on stderr.
+        Print a line per variant on stderr, and while the moisture draws run a progress line (draws done of the
+        variant's, elapsed, estimated remaining).
     wall_source : str, optional
         How the report names the wall given as ``wall`` (default "the given wall").
+    resume : bool
+        Take the draws already run from the checkpoint beside ``out`` (module docstring) instead of running them
+        again. Without it a checkpoint there is replaced.
+
+    Raises
+    ------
+    CheckpointError
+        ``resume`` and a checkpoint that is damaged or was made with other inputs (one line).
 
     Returns
     -------
@@ -833,25 +948,32 @@ def retrofit(
     else:
         glasers = [None] * len(vwalls)
     settings, moisture_info = _moisture_setup(study, spec, weather, yb, base, source, vwalls)
+    ckpt = _open_checkpoint(study, spec, weather, base, vwalls, smp, out, resume, progress)
     results = []
     times = weather.data.index.tz_localize(None)
     hour_index = times.append(pd.DatetimeIndex([times[-1] + pd.Timedelta(hours=1)]))
     per_hour = int(round(3600 / yb.time_step))
-    for v, w, g in zip(spec.variants, vwalls, glasers, strict=True):
+    draws_left = _DrawsLeft(len(smp.walls) if smp is not None else 0, len(vwalls), ckpt, t_start, progress)
+    for k, (v, w, g) in enumerate(zip(spec.variants, vwalls, glasers, strict=True)):
         t = time.perf_counter()
         point = periodic_year([w], yb, all_rows=True)
         sample_losses = None
-        if smp is not None:  # every posterior draw with the variant's changes, in one batch on the point's grid
+        if smp is not None and ckpt is not None and k in ckpt.losses:
+            sample_losses = ckpt.losses[k]
+        elif smp is not None:  # every posterior draw with the variant's changes, in one batch on the point's grid
             yr = periodic_year([w] + [apply_variant(sw, v) for sw in smp.walls], yb, all_rows=False)
             sample_losses = yr.annual_loss_kWh_m2[1:]
+            if ckpt is not None:
+                ckpt.losses[k] = sample_losses
+                ckpt.save()
         hygro = sample_moisture = None
         if settings is not None:
             from . import moisture_risk as mr
 
             hygro = mr.run_wall(w, settings, _layer_path(v, w))
-            if smp is not None:  # each draw from the point wall's periodic end state
+            if smp is not None:  # each draw from the point wall's periodic end state, in chunks (saved after each)
                 draws = [apply_variant(sw, v) for sw in smp.walls]
-                sample_moisture = mr.run_draws(draws, settings, hygro.final_state)
+                sample_moisture = _moisture_draws(draws, settings, hygro.final_state, k, v.name, ckpt, draws_left)
         u = iso6946.thermal_resistance(
             w, rsi=1.0 / spec.interior_surface_coefficient, rse=1.0 / spec.exterior_surface_coefficient
         ).u_value
@@ -899,4 +1021,110 @@ def retrofit(
     )
     if out is not None:
         res.write(out)
+    if ckpt is not None:  # only now that the outputs are in place (a kill before this line resumes from it)
+        from ..calibration.checkpoint import remove
+
+        remove(ckpt.path)
     return res
+
+
+def _open_checkpoint(study, spec, weather, base, vwalls, smp, out, resume, progress):
+    """The run's :class:`DrawCheckpoint` (None without posterior draws or output directory): the one beside ``out``
+    with ``resume``, checked, else a new one (a checkpoint there is replaced)."""
+    import sys
+
+    from ..calibration.checkpoint import CheckpointError, present, remove
+    from ..errors import WallcalError
+
+    path = checkpoint_path(out)
+    if resume and not present(path):
+        raise WallcalError(f"nothing to resume: no checkpoint {path} (run without --resume)")
+    if smp is None or path is None:
+        if resume:
+            raise CheckpointError(path, "this run has no posterior draws to resume (give --from a posterior output)")
+        return None
+    names = [v.name for v in spec.variants]
+    inputs = draw_inputs(study, spec, weather, base, vwalls, smp)
+    if resume:
+        ck = DrawCheckpoint.load(path, inputs, names)
+        ck.save()  # written again: the command sees the run took it up (the file changed)
+        return ck
+    if present(path):
+        if path.is_dir() and not path.is_symlink():
+            raise CheckpointError(path, "a directory stands where the checkpoint goes", "remove it to run")
+        if progress:
+            print(f"replacing the checkpoint {path.name} of an earlier run (--resume continues one)", file=sys.stderr)
+        remove(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ck = DrawCheckpoint(path, inputs, names)
+    ck.save()
+    return ck
+
+
+@dataclass
+class _DrawsLeft:
+    """The moisture draws' progress over the variants: how many are left and how fast they go in this run."""
+
+    per_variant: int
+    variants: int
+    ckpt: DrawCheckpoint | None
+    t_start: float
+    progress: bool
+    ran: int = 0
+    seconds: float = 0.0
+
+    def line(self, k: int, name: str, done: int, resumed: int) -> str:
+        left = (
+            self.per_variant
+            - done
+            + sum(
+                self.per_variant - (len(self.ckpt.moisture.get(j, ())) if self.ckpt is not None else 0)
+                for j in range(k + 1, self.variants)
+            )
+        )
+        eta = f", ~{self.seconds / self.ran * left:.0f} s left" if self.ran and left else ""
+        was = f", {resumed} from the checkpoint" if resumed else ""
+        return (
+            f"{name!r} ({k + 1}/{self.variants}): moisture draws {done}/{self.per_variant}{was}, "
+            f"{time.perf_counter() - self.t_start:.0f} s{eta}"
+        )
+
+
+def _moisture_draws(draws, settings, initial, k: int, name: str, ckpt, left: _DrawsLeft) -> np.ndarray:
+    """A variant's moisture draws in chunks, those of the checkpoint taken from it; the checkpoint saved and the
+    progress line updated after each chunk."""
+    from ..calibration.algorithms import Progress
+    from ..cluster import current_executor
+    from . import moisture_risk as mr
+
+    done = ckpt.moisture.get(k) if ckpt is not None else None
+    resumed = 0 if done is None else len(done)
+    prog = Progress("retrofit", enabled=left.progress)
+    ex = current_executor()
+    chunk = DRAW_CHUNK_PER_WORKER * (_workers(ex) if ex is not None else 1)
+    t = [time.perf_counter(), resumed]
+
+    def on_chunk(rows: np.ndarray) -> None:
+        if ckpt is not None:
+            ckpt.moisture[k] = rows
+            ckpt.save()
+        now = time.perf_counter()
+        left.ran += len(rows) - t[1]
+        left.seconds += now - t[0]
+        t[:] = [now, len(rows)]
+        prog.update(left.line(k, name, len(rows), resumed))
+
+    prog.update(left.line(k, name, resumed, resumed), force=True)
+    out = mr.run_draws(draws, settings, initial, done=done, chunk=chunk, on_chunk=on_chunk)
+    prog.close(left.line(k, name, len(out), resumed))
+    return out
+
+
+def _workers(ex) -> int:
+    """The executor's worker processes (a remote cluster: as its scheduler reports them, at least 1)."""
+    if ex.address is None:
+        return ex.n_local_workers()
+    try:
+        return max(1, len(ex.client().scheduler_info().get("workers", {})))
+    except Exception:  # the count only sizes the chunks
+        return 1
