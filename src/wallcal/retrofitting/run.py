@@ -1112,7 +1112,8 @@ def _moisture_draws(draws, settings, initial, k: int, name: str, ckpt, left: _Dr
         left.ran += len(rows) - t[1]
         left.seconds += now - t[0]
         t[:] = [now, len(rows)]
-        prog.update(left.line(k, name, len(rows), resumed))
+        if len(rows) < len(draws):  # (the last is shown by close)
+            prog.update(left.line(k, name, len(rows), resumed))
 
     prog.update(left.line(k, name, resumed, resumed), force=True)
     out = mr.run_draws(draws, settings, initial, done=done, chunk=chunk, on_chunk=on_chunk)
