@@ -222,3 +222,22 @@ def test_run_draws_skips_the_rows_done_and_reports_each_chunk(monkeypatch):
     assert ran == [2, 3, 4, 5, 6]
     assert seen == [4, 6, 7]
     np.testing.assert_array_equal(out[:, 0], np.arange(7))
+
+
+def test_ctrl_c_inside_a_numba_kernel_is_an_interruption(case, monkeypatch, capsys):
+    """Ctrl-C while a numba kernel runs surfaces as a SystemError caused by the KeyboardInterrupt: the same exit 130
+    and --resume command as a plain Ctrl-C, no traceback."""
+    tmp, study, post = case
+    out = tmp / "out"
+
+    def kernel_interrupt(message):
+        exc = SystemError(f"CPUDispatcher(run_ham) returned a result with an exception set ({message})")
+        exc.__cause__ = KeyboardInterrupt()
+        return exc
+
+    _count_draws(monkeypatch, stop_at=3, error=kernel_interrupt)
+    code = main(_args(study, post, out, "--quiet"))
+    err = capsys.readouterr().err
+    assert code == 130, err
+    assert err.startswith("wallcal: interrupted;") and "--resume" in err and "Traceback" not in err, err
+    assert rr.checkpoint_path(out).exists() and not out.exists()

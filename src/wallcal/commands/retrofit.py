@@ -72,15 +72,21 @@ def run(args) -> int:
             progress=not args.quiet,
             resume=resume,
         )
+    except Exception as exc:
+        saved = _stamp(ckpt) not in (None, before)  # the run wrote the draws' checkpoint or took it up
+        if _interrupted(exc) and not getattr(args, "debug", False):
+            if not saved:
+                raise KeyboardInterrupt from None
+            print(f"wallcal: interrupted; nothing was written to {out}. {_saved(args, ckpt)}", file=sys.stderr)
+            return 130
+        if saved and not getattr(args, "debug", False):  # a lost cluster, a killed worker ...: the draws are kept
+            print(_saved(args, ckpt), file=sys.stderr)
+        raise
     except KeyboardInterrupt:
-        if _stamp(ckpt) in (None, before):  # stopped before the draws' checkpoint was written or taken up
+        if _stamp(ckpt) in (None, before):
             raise
         print(f"wallcal: interrupted; nothing was written to {out}. {_saved(args, ckpt)}", file=sys.stderr)
         return 130
-    except Exception:  # a lost cluster, a killed worker ...: the draws saved so far are kept
-        if _stamp(ckpt) not in (None, before) and not getattr(args, "debug", False):
-            print(_saved(args, ckpt), file=sys.stderr)
-        raise
     tab = res.table().set_index("variant")
     print(f"{study.name or Path(args.study).name}: {len(res.variants)} variant(s), {res.seconds:.1f} s")
     print()
@@ -132,6 +138,18 @@ def _saved(args, ckpt) -> str:
         cmd += ["--samples", str(args.samples)]
     cmd.append("--resume")
     return f"The posterior draws done so far are saved in {ckpt}; continue with: {shlex.join(cmd)}"
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` comes from a Ctrl-C: one that arrives inside a numba kernel surfaces as a ``SystemError``
+    ("returned a result with an exception set") whose cause is the ``KeyboardInterrupt``."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _stamp(path):

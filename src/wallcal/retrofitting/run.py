@@ -1115,7 +1115,8 @@ def _moisture_draws(draws, settings, initial, k: int, name: str, ckpt, left: _Dr
         if len(rows) < len(draws):  # (the last is shown by close)
             prog.update(left.line(k, name, len(rows), resumed))
 
-    prog.update(left.line(k, name, resumed, resumed), force=True)
+    if resumed < len(draws):
+        prog.update(left.line(k, name, resumed, resumed), force=True)
     out = mr.run_draws(draws, settings, initial, done=done, chunk=chunk, on_chunk=on_chunk)
     prog.close(left.line(k, name, len(out), resumed))
     return out
