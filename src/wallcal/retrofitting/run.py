@@ -1037,6 +1037,8 @@ def _open_checkpoint(study, spec, weather, base, vwalls, smp, out, resume, progr
     from ..errors import WallcalError
 
     path = checkpoint_path(out)
+    if resume and path is None:
+        raise WallcalError("resume: give the output directory (out); the checkpoint is kept beside it")
     if resume and not present(path):
         raise WallcalError(f"nothing to resume: no checkpoint {path} (run without --resume)")
     if smp is None or path is None:
