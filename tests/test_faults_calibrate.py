@@ -280,8 +280,9 @@ def pso(tmp_path_factory):
     return study, result_of(d / "ref"), ckpt
 
 
-def _interrupted_checkpoint(study: Path, out: Path, stop_at_call: int) -> Path:
-    """The checkpoint of a calibration interrupted (Ctrl-C) at its ``stop_at_call``-th batch, run in this process."""
+def _interrupted_checkpoint(study: Path, out: Path, stop_at_call: int, in_kernel: bool = False) -> Path:
+    """The checkpoint of a calibration interrupted (Ctrl-C) at its ``stop_at_call``-th batch, run in this process
+    (``in_kernel``: the Ctrl-C arrives while a numba kernel runs, as a SystemError caused by it)."""
     import pytest as _pytest
 
     from wallcal import load_study
@@ -294,6 +295,8 @@ def _interrupted_checkpoint(study: Path, out: Path, stop_at_call: int) -> Path:
     def flaky(self, X):
         calls["n"] += 1
         if calls["n"] == stop_at_call:
+            if in_kernel:
+                raise SystemError("returned a result with an exception set") from KeyboardInterrupt()
             raise KeyboardInterrupt
         return orig(self, X)
 
@@ -304,6 +307,20 @@ def _interrupted_checkpoint(study: Path, out: Path, stop_at_call: int) -> Path:
     ckpt = out.parent / f".{out.name}.checkpoint.json"
     assert ckpt.is_file()
     return ckpt
+
+
+def test_ctrl_c_inside_a_kernel_saves_the_checkpoint(pso, tmp_path):
+    """A Ctrl-C that lands in a numba kernel surfaces as a SystemError caused by the KeyboardInterrupt: the
+    calibration still stops as interrupted with its checkpoint, like a plain Ctrl-C."""
+    ckpt = _interrupted_checkpoint(pso[0], tmp_path / "mid", stop_at_call=6, in_kernel=True)
+    assert json.loads(ckpt.read_text())["history"]
+
+
+def test_a_system_error_without_ctrl_c_is_not_an_interruption():
+    from wallcal.errors import interrupted
+
+    assert not interrupted(SystemError("a real error"))
+    assert interrupted(KeyboardInterrupt())
 
 
 # ------------------------------------------------------------------------- bad checkpoints

@@ -20,7 +20,7 @@ import threading
 
 from numba.core import event
 
-from .errors import WallcalError, format_message
+from .errors import WallcalError, format_message, interrupted
 
 #: numba's event of one compilation (its documented event API; a load from the kernel cache sends none)
 COMPILE_EVENT = "numba:compile"
@@ -124,8 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into a command that stopped reading (e.g. head)
         sys.stderr.close()
         return 0
-    except KeyboardInterrupt:
-        if args.debug:
+    except (KeyboardInterrupt, SystemError) as exc:  # (a Ctrl-C inside a numba kernel: a SystemError)
+        if args.debug or not interrupted(exc):
             raise
         print("wallcal: interrupted; no partial output was left in place", file=sys.stderr)
         return 130

@@ -148,3 +148,15 @@ def require(module: str, extra: str):
         raise OptionalDependencyError(
             f"this needs the optional package {module!r}: pip install 'wallcal[{extra}]'"
         ) from exc
+
+
+def interrupted(exc: BaseException | None) -> bool:
+    """Whether ``exc`` comes from a Ctrl-C: a ``KeyboardInterrupt``, or one that arrived while a numba kernel ran
+    and surfaces as a ``SystemError`` ("returned a result with an exception set") caused by it."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False

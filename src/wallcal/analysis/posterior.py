@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..errors import interrupted
 from .identifiability import verdict
 
 # the likelihood, the self-checks and the outputs live beside this module (the sampler); their names are
@@ -406,7 +407,9 @@ def posterior(
                     f"step {len(prev_chain) + done}/{'at most ' if adaptive else ''}{len(prev_chain) + steps}, "
                     f"{ev.evaluations} simulations, acceptance {np.mean(sampler.acceptance_fraction):.2f}{ess}"
                 )
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:  # (a Ctrl-C inside a numba kernel: a SystemError)
+        if not interrupted(exc):
+            raise
         status = "interrupted"
     chain = np.concatenate([prev_chain, sampler.get_chain()]) if done else prev_chain
     logp = np.concatenate([prev_lp, sampler.get_log_prob()]) if done else prev_lp

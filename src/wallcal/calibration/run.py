@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from ..engines import entry
-from ..errors import StudyError, WallcalError
+from ..errors import StudyError, WallcalError, interrupted
 from ..simulation import BATCH_NEEDS, Prepared, prepare, simulate
 from ..study import Study, dump_wall, load_wall
 from . import algorithms as alg
@@ -329,7 +329,9 @@ def calibrate(
         rec.check_replayed()
         if algorithm != "pso-hj":  # (pso-hj saves its own "done")
             rec.save({"phase": "done"})
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:  # (a Ctrl-C inside a numba kernel: a SystemError)
+        if not interrupted(exc):
+            raise
         status = "interrupted"
         if algorithm != "pso-hj":  # pso-hj's checkpoint already holds its last complete generation
             rec.save(None)

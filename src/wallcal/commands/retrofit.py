@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import interrupted
 from ..formatting import table
 
 
@@ -74,7 +75,7 @@ def run(args) -> int:
         )
     except Exception as exc:
         saved = _stamp(ckpt) not in (None, before)  # the run wrote the draws' checkpoint or took it up
-        if _interrupted(exc) and not getattr(args, "debug", False):
+        if interrupted(exc) and not getattr(args, "debug", False):
             if not saved:
                 raise KeyboardInterrupt from None
             print(f"wallcal: interrupted; nothing was written to {out}. {_saved(args, ckpt)}", file=sys.stderr)
@@ -138,18 +139,6 @@ def _saved(args, ckpt) -> str:
         cmd += ["--samples", str(args.samples)]
     cmd.append("--resume")
     return f"The posterior draws done so far are saved in {ckpt}; continue with: {shlex.join(cmd)}"
-
-
-def _interrupted(exc: BaseException) -> bool:
-    """Whether ``exc`` comes from a Ctrl-C: one that arrives inside a numba kernel surfaces as a ``SystemError``
-    ("returned a result with an exception set") whose cause is the ``KeyboardInterrupt``."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
 
 
 def _stamp(path):
