@@ -44,15 +44,22 @@ DAMP_U = 2.0  # largest Newton update of ln pc (a larger one took more iteration
 
 
 @inner()
-def interp(tab, m, u):
-    """Table value and slope at ``u`` (linear; extrapolated with the end segments)."""
+def segment(u):
+    """Index ``i`` of the table segment holding ``u`` and the fraction ``f`` along it (the end segments
+    extended)."""
     s = (u - U_MIN) / DU
     i = int(math.floor(s))
     if i < 0:
         i = 0
     elif i > N_TABLE - 2:
         i = N_TABLE - 2
-    f = s - i
+    return i, s - i
+
+
+@inner()
+def interp(tab, m, u):
+    """Table value and slope at ``u`` (linear; extrapolated with the end segments)."""
+    i, f = segment(u)
     a = tab[m, i]
     b = tab[m, i + 1]
     return a + (b - a) * f, (b - a) / DU
@@ -88,73 +95,108 @@ def dln_psat_dt(t):
 
 
 @inner()
-def cell_props(t, u, m, tw, tk, td, thermal, out):
-    """A cell's properties and their derivatives, into ``out``: 0 w, 1 dw/du, 2 lambda, 3 dlambda/du,
-    4 delta_p, 5 ddelta/dT, 6 ddelta/du, 7 p_v, 8 dp_v/dT, 9 dp_v/du, 10 Phi, 11 dPhi/du, 12 dlambda/dT."""
-    w, dw = interp(tw, m, u)
-    out[0] = w
-    out[1] = dw
-    out[2] = thermal[m, 0] + thermal[m, 1] * w + thermal[m, 3] * t
-    out[3] = thermal[m, 1] * dw
-    out[12] = thermal[m, 3]
-    d, dd = interp(td, m, u)
+def cell_props(t, u, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, f):
+    """A cell's properties and their derivatives from its table segment's end values (``*_a``, ``*_b``,
+    fraction ``f``): ``(w, dw/du, lambda, dlambda/du, dlambda/dT, delta_p, ddelta/dT, ddelta/du, p_v, dp_v/dT,
+    dp_v/du, Phi, dPhi/du)``. Scalars only: an array passed to a compiled function costs two atomic
+    reference count operations a call, which were most of the kernel's time."""
+    w = w_a + (w_b - w_a) * f
+    dw = (w_b - w_a) / DU
     tk_ = t + 273.15
-    out[4] = d * T_REF / tk_
-    out[5] = -out[4] / tk_
-    out[6] = dd * T_REF / tk_
+    d = (d_a + (d_b - d_a) * f) * T_REF / tk_
+    dd = (d_b - d_a) / DU * T_REF / tk_
     pc = math.exp(u)
-    phi = math.exp(-pc / KELVIN)
-    ps = psat(t)
-    out[7] = phi * ps
-    out[8] = out[7] * dln_psat_dt(t)
-    out[9] = -out[7] * pc / KELVIN
-    k, dk = interp(tk, m, u)
-    out[10] = k
-    out[11] = dk
+    pv = math.exp(-pc / KELVIN) * psat(t)
+    return (
+        w,
+        dw,
+        lam_dry + lam_w * w + lam_t * t,
+        lam_w * dw,
+        lam_t,
+        d,
+        -d / tk_,
+        dd,
+        pv,
+        pv * dln_psat_dt(t),
+        -pv * pc / KELVIN,
+        k_a + (k_b - k_a) * f,
+        (k_b - k_a) / DU,
+    )
 
 
 @inner()
-def face_flux(ti, pi, dxi, tj, pj, dxj, jac, gl, gl_ui, gl_uj):
-    """Flux ``(G, Q)`` between two cells from their properties ``pi``, ``pj`` (:func:`cell_props`) and the
-    liquid flux ``gl`` with its derivatives in ``ui``, ``uj``; the derivatives of ``(G, Q)`` go into
-    ``jac[0:2, 0:4]`` (rows G, Q; columns Ti, ui, Tj, uj)."""
+def face_flux(
+    ti,
+    lam_i,
+    lam_ti,
+    lam_ui,
+    d_i,
+    d_ti,
+    d_ui,
+    pv_i,
+    pv_ti,
+    pv_ui,
+    dxi,
+    tj,
+    lam_j,
+    lam_tj,
+    lam_uj,
+    d_j,
+    d_tj,
+    d_uj,
+    pv_j,
+    pv_tj,
+    pv_uj,
+    dxj,
+    gl,
+    gl_ui,
+    gl_uj,
+):
+    """Flux ``(G, Q)`` between two cells from their properties (:func:`cell_props`: lambda, delta_p and p_v
+    with their derivatives in T and u) and the liquid flux ``gl`` with its derivatives in ``ui``, ``uj``;
+    then the derivatives of G and of Q in ``Ti, ui, Tj, uj``."""
     a = HALF * dxi
     b = HALF * dxj
     # conduction
-    rh = a / pi[2] + b / pj[2]
+    rh = a / lam_i + b / lam_j
     q = (ti - tj) / rh
-    q_ti = 1.0 / rh + q / rh * a / (pi[2] * pi[2]) * pi[12]
-    q_tj = -1.0 / rh + q / rh * b / (pj[2] * pj[2]) * pj[12]
-    q_ui = q / rh * a / (pi[2] * pi[2]) * pi[3]
-    q_uj = q / rh * b / (pj[2] * pj[2]) * pj[3]
+    ci = q / rh * a / (lam_i * lam_i)
+    cj = q / rh * b / (lam_j * lam_j)
+    q_ti = 1.0 / rh + ci * lam_ti
+    q_tj = -1.0 / rh + cj * lam_tj
+    q_ui = ci * lam_ui
+    q_uj = cj * lam_uj
     # vapour
     gv = 0.0
     gv_ti = 0.0
     gv_ui = 0.0
     gv_tj = 0.0
     gv_uj = 0.0
-    if pi[4] > 0.0 and pj[4] > 0.0:
-        rv = a / pi[4] + b / pj[4]
-        dpv = pi[7] - pj[7]
-        gv = dpv / rv
-        ci = gv / rv * a / (pi[4] * pi[4])
-        cj = gv / rv * b / (pj[4] * pj[4])
-        gv_ti = pi[8] / rv + ci * pi[5]
-        gv_ui = pi[9] / rv + ci * pi[6]
-        gv_tj = -pj[8] / rv + cj * pj[5]
-        gv_uj = -pj[9] / rv + cj * pj[6]
+    if d_i > 0.0 and d_j > 0.0:
+        rv = a / d_i + b / d_j
+        gv = (pv_i - pv_j) / rv
+        ci = gv / rv * a / (d_i * d_i)
+        cj = gv / rv * b / (d_j * d_j)
+        gv_ti = pv_ti / rv + ci * d_ti
+        gv_ui = pv_ui / rv + ci * d_ui
+        gv_tj = -pv_tj / rv + cj * d_tj
+        gv_uj = -pv_uj / rv + cj * d_uj
     tf = HALF * (ti + tj)
     hv = H_V0 + C_VAP * tf
     hl = C_WATER * tf
-    jac[0, 0] = gv_ti
-    jac[0, 1] = gv_ui + gl_ui
-    jac[0, 2] = gv_tj
-    jac[0, 3] = gv_uj + gl_uj
-    jac[1, 0] = q_ti + gv_ti * hv + HALF * C_VAP * gv + HALF * C_WATER * gl
-    jac[1, 1] = q_ui + gv_ui * hv + gl_ui * hl
-    jac[1, 2] = q_tj + gv_tj * hv + HALF * C_VAP * gv + HALF * C_WATER * gl
-    jac[1, 3] = q_uj + gv_uj * hv + gl_uj * hl
-    return gv + gl, q + gv * hv + gl * hl
+    carried = HALF * C_VAP * gv + HALF * C_WATER * gl
+    return (
+        gv + gl,
+        q + gv * hv + gl * hl,
+        gv_ti,
+        gv_ui + gl_ui,
+        gv_tj,
+        gv_uj + gl_uj,
+        q_ti + gv_ti * hv + carried,
+        q_ui + gv_ui * hv + gl_ui * hl,
+        q_tj + gv_tj * hv + carried,
+        q_uj + gv_uj * hv + gl_uj * hl,
+    )
 
 
 @inner()
@@ -363,7 +405,6 @@ def run_ham(
                 cum_bc[side, kb, c] = cum_bc[side, kb - 1, c] + 0.5 * (tb[kb] - tb[kb - 1]) * (
                     bc[side, kb - 1, c] + bc[side, kb, c]
                 )
-    jac = np.empty((2, 4))
     b_l = np.empty(NB_COLS)
     b_r = np.empty(NB_COLS)
     cum = np.zeros((2, 5))
@@ -394,11 +435,27 @@ def run_ham(
         while it < max_iter:
             it += 1
             for i in range(n):
-                pr = props[i]
-                cell_props(tn[i], un[i], mat[i], tw, tk, td, thermal, pr)
-                w = pr[0]
-                dw = pr[1]
-                rc = thermal[mat[i], 2] + C_WATER * w
+                m = mat[i]
+                ks, fr = segment(un[i])
+                p = cell_props(
+                    tn[i],
+                    un[i],
+                    thermal[m, 0],
+                    thermal[m, 1],
+                    thermal[m, 3],
+                    tw[m, ks],
+                    tw[m, ks + 1],
+                    td[m, ks],
+                    td[m, ks + 1],
+                    tk[m, ks],
+                    tk[m, ks + 1],
+                    fr,
+                )
+                for q in range(13):
+                    props[i, q] = p[q]
+                w = p[0]
+                dw = p[1]
+                rc = thermal[m, 2] + C_WATER * w
                 c = dx[i] / step
                 res[i, 0] = c * (w - w_old[i])
                 res[i, 1] = c * (rc * tn[i] - e_old[i])
@@ -416,22 +473,40 @@ def run_ham(
                 j = f
                 if mat[i] == mat[j]:
                     dist = HALF * (dx[i] + dx[j])
-                    gl = (props[j, 10] - props[i, 10]) / dist
-                    gl_ui = -props[i, 11] / dist
-                    gl_uj = props[j, 11] / dist
+                    gl = (props[j, 11] - props[i, 11]) / dist
+                    gl_ui = -props[i, 12] / dist
+                    gl_uj = props[j, 12] / dist
                 else:
                     gl = liquid_interface(un[i], mat[i], dx[i], un[j], mat[j], dx[j], tk)
                     gl_ui = (liquid_interface(un[i] + hu, mat[i], dx[i], un[j], mat[j], dx[j], tk) - gl) / hu
                     gl_uj = (liquid_interface(un[i], mat[i], dx[i], un[j] + hu, mat[j], dx[j], tk) - gl) / hu
-                g0, q0 = face_flux(tn[i], props[i], dx[i], tn[j], props[j], dx[j], jac, gl, gl_ui, gl_uj)
-                a00 = jac[0, 0]
-                a01 = jac[0, 1]
-                a10 = jac[1, 0]
-                a11 = jac[1, 1]
-                b00 = jac[0, 2]
-                b01 = jac[0, 3]
-                b10 = jac[1, 2]
-                b11 = jac[1, 3]
+                g0, q0, a00, a01, b00, b01, a10, a11, b10, b11 = face_flux(
+                    tn[i],
+                    props[i, 2],
+                    props[i, 4],
+                    props[i, 3],
+                    props[i, 5],
+                    props[i, 6],
+                    props[i, 7],
+                    props[i, 8],
+                    props[i, 9],
+                    props[i, 10],
+                    dx[i],
+                    tn[j],
+                    props[j, 2],
+                    props[j, 4],
+                    props[j, 3],
+                    props[j, 5],
+                    props[j, 6],
+                    props[j, 7],
+                    props[j, 8],
+                    props[j, 9],
+                    props[j, 10],
+                    dx[j],
+                    gl,
+                    gl_ui,
+                    gl_uj,
+                )
                 res[i, 0] += g0
                 res[i, 1] += q0
                 res[j, 0] -= g0
