@@ -33,13 +33,15 @@ import math
 import numpy as np
 
 from ..jit import inner, kernel
-from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_MIN
+from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_GRID, U_MAX, U_MIN
 
 H_V0 = 2.501e6  # J/kg, latent heat at 0 degC
 C_VAP = 1870.0  # J/(kg K)
 HALF = 0.5
 
 NB_COLS = 6
+INV_DU = 1.0 / DU
+INV_KELVIN = 1.0 / KELVIN
 DAMP_U = 2.0  # largest Newton update of ln pc (a larger one took more iterations in the rain year)
 
 
@@ -47,7 +49,7 @@ DAMP_U = 2.0  # largest Newton update of ln pc (a larger one took more iteration
 def segment(u):
     """Index ``i`` of the table segment holding ``u`` and the fraction ``f`` along it (the end segments
     extended)."""
-    s = (u - U_MIN) / DU
+    s = (u - U_MIN) * INV_DU
     i = int(math.floor(s))
     if i < 0:
         i = 0
@@ -62,19 +64,110 @@ def interp(tab, m, u):
     i, f = segment(u)
     a = tab[m, i]
     b = tab[m, i + 1]
-    return a + (b - a) * f, (b - a) / DU
+    return a + (b - a) * f, (b - a) * INV_DU
+
+
+@inner()
+def psat_formula(t, ice):
+    """Saturation vapour pressure [Pa] at ``t`` [degC] and its slope [Pa/K] (EN ISO 13788), over ice or
+    over water."""
+    if ice:
+        r = 1.0 / (265.5 + t)
+        p = 610.5 * math.exp(21.875 * t * r)
+        return p, p * 21.875 * 265.5 * r * r
+    r = 1.0 / (237.3 + t)
+    p = 610.5 * math.exp(17.269 * t * r)
+    return p, p * 17.269 * 237.3 * r * r
+
+
+@inner()
+def psat_exact(t):
+    """:func:`psat_formula` over ice below 0 degC."""
+    return psat_formula(t, t < 0.0)
+
+
+@inner()
+def kelvin_exact(u):
+    """Relative humidity ``phi = exp(-pc / KELVIN)`` at ``u = ln pc`` and its slope dphi/du."""
+    x = math.exp(u) * INV_KELVIN
+    phi = math.exp(-x)
+    return phi, -phi * x
+
+
+# Tables of the two closed forms that every cell evaluates each Newton iteration (exp is most of their
+# cost): cubic Hermite interpolation from the values and slopes at the nodes, so the interpolant and its
+# slope are continuous (no kink for Newton) and within 1e-12 (relative) of the closed forms
+# (tests/test_moisture_ham.py); outside the tables the closed forms.
+T_LO = -80.0  # degC
+T_HI = 120.0
+DT_TAB = 0.05  # K (a node at 0 degC, where the formula changes)
+N_T = int(round((T_HI - T_LO) / DT_TAB)) + 1
+INV_DT_TAB = 1.0 / DT_TAB
+
+
+@kernel
+def _tables(u_grid):
+    n = u_grid.shape[0]
+    phi = np.empty(n)
+    phi_u = np.empty(n)
+    for k in range(n):
+        phi[k], phi_u[k] = kelvin_exact(u_grid[k])
+    ps = np.empty(N_T)
+    slope_a = np.empty(N_T - 1)  # slope at each segment's two ends, by the segment's side of 0 degC
+    slope_b = np.empty(N_T - 1)
+    zero = int(round(-T_LO / DT_TAB))
+    nodes = T_LO + DT_TAB * np.arange(N_T)
+    nodes[zero] = 0.0
+    for k in range(N_T):
+        ps[k] = psat_exact(nodes[k])[0]
+    for k in range(N_T - 1):
+        slope_a[k] = psat_formula(nodes[k], k < zero)[1]
+        slope_b[k] = psat_formula(nodes[k + 1], k < zero)[1]
+    return phi, phi_u, ps, slope_a, slope_b
+
+
+PHI_TAB, PHI_U_TAB, PSAT_TAB, PSAT_SA, PSAT_SB = _tables(U_GRID)
+
+
+@inner()
+def hermite(ya, yb, sa, sb, f, h, inv_h):
+    """Cubic Hermite interpolant at fraction ``f`` of a segment of width ``h`` with end values ``ya``, ``yb``
+    and end slopes ``sa``, ``sb``: value and slope."""
+    f2 = f * f
+    f3 = f2 * f
+    y = (2.0 * f3 - 3.0 * f2 + 1.0) * ya + (f3 - 2.0 * f2 + f) * h * sa + (3.0 * f2 - 2.0 * f3) * yb
+    y += (f3 - f2) * h * sb
+    dy = 6.0 * (f2 - f) * (ya - yb) * inv_h + (3.0 * f2 - 4.0 * f + 1.0) * sa + (3.0 * f2 - 2.0 * f) * sb
+    return y, dy
+
+
+@inner()
+def psat_slope(t):
+    """Saturation vapour pressure [Pa] at ``t`` [degC] and its slope [Pa/K], from the table."""
+    if not (T_LO <= t < T_HI):
+        return psat_exact(t)
+    s = (t - T_LO) * INV_DT_TAB
+    k = min(int(s), N_T - 2)
+    return hermite(PSAT_TAB[k], PSAT_TAB[k + 1], PSAT_SA[k], PSAT_SB[k], s - k, DT_TAB, INV_DT_TAB)
+
+
+@inner()
+def kelvin(u):
+    """Relative humidity at ``u = ln pc`` and its slope dphi/du, from the table."""
+    if not (U_MIN <= u <= U_MAX):
+        return kelvin_exact(u)
+    i, f = segment(u)
+    return hermite(PHI_TAB[i], PHI_TAB[i + 1], PHI_U_TAB[i], PHI_U_TAB[i + 1], f, DU, INV_DU)
 
 
 @inner()
 def psat(t):
-    if t >= 0.0:
-        return 610.5 * math.exp(17.269 * t / (237.3 + t))
-    return 610.5 * math.exp(21.875 * t / (265.5 + t))
+    return psat_slope(t)[0]
 
 
 @inner()
 def vapour_pressure(t, u):
-    return math.exp(-math.exp(u) / KELVIN) * psat(t)
+    return kelvin(u)[0] * psat(t)
 
 
 @inner()
@@ -88,82 +181,67 @@ def node_props(t, u, m, tw, td, thermal):
 
 
 @inner()
-def dln_psat_dt(t):
-    if t >= 0.0:
-        return 17.269 * 237.3 / ((237.3 + t) * (237.3 + t))
-    return 21.875 * 265.5 / ((265.5 + t) * (265.5 + t))
-
-
-@inner()
-def cell_props(t, u, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, f):
+def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, f):
     """A cell's properties and their derivatives from its table segment's end values (``*_a``, ``*_b``,
-    fraction ``f``): ``(w, dw/du, lambda, dlambda/du, dlambda/dT, delta_p, ddelta/dT, ddelta/du, p_v, dp_v/dT,
-    dp_v/du, Phi, dPhi/du)``. Scalars only: an array passed to a compiled function costs two atomic
-    reference count operations a call, which were most of the kernel's time."""
+    fraction ``f``) and its half width ``half`` [m]: ``(w, dw/du, dlambda/du, dlambda/dT, half/lambda,
+    half/lambda^2, delta_p, ddelta/dT, ddelta/du, half/delta_p, half/delta_p^2, p_v, dp_v/dT, dp_v/du, Phi,
+    dPhi/du)`` (the half-cell resistances as :func:`face_flux` takes them; 0 for a vapour-tight cell).
+    Scalars only: an array passed to a compiled function costs two atomic reference count operations a
+    call, which were most of the kernel's time; and one division per quantity, reused by both faces."""
     w = w_a + (w_b - w_a) * f
-    dw = (w_b - w_a) / DU
-    tk_ = t + 273.15
-    d = (d_a + (d_b - d_a) * f) * T_REF / tk_
-    dd = (d_b - d_a) / DU * T_REF / tk_
-    pc = math.exp(u)
-    pv = math.exp(-pc / KELVIN) * psat(t)
+    dw = (w_b - w_a) * INV_DU
+    inv_lam = 1.0 / (lam_dry + lam_w * w + lam_t * t)
+    r_lam = half * inv_lam
+    inv_tk = 1.0 / (t + 273.15)
+    scale = T_REF * inv_tk
+    d = (d_a + (d_b - d_a) * f) * scale
+    r_d = 0.0
+    g_d = 0.0
+    if d > 0.0:
+        inv_d = 1.0 / d
+        r_d = half * inv_d
+        g_d = r_d * inv_d
+    phi, phi_u = kelvin(u)
+    ps, ps_t = psat_slope(t)
     return (
         w,
         dw,
-        lam_dry + lam_w * w + lam_t * t,
         lam_w * dw,
         lam_t,
+        r_lam,
+        r_lam * inv_lam,
         d,
-        -d / tk_,
-        dd,
-        pv,
-        pv * dln_psat_dt(t),
-        -pv * pc / KELVIN,
+        -d * inv_tk,
+        (d_b - d_a) * INV_DU * scale,
+        r_d,
+        g_d,
+        phi * ps,
+        phi * ps_t,
+        phi_u * ps,
         k_a + (k_b - k_a) * f,
-        (k_b - k_a) / DU,
+        (k_b - k_a) * INV_DU,
     )
 
 
 @inner()
 def face_flux(
-    ti,
-    lam_i,
-    lam_ti,
-    lam_ui,
-    d_i,
-    d_ti,
-    d_ui,
-    pv_i,
-    pv_ti,
-    pv_ui,
-    dxi,
-    tj,
-    lam_j,
-    lam_tj,
-    lam_uj,
-    d_j,
-    d_tj,
-    d_uj,
-    pv_j,
-    pv_tj,
-    pv_uj,
-    dxj,
-    gl,
-    gl_ui,
-    gl_uj,
-):
-    """Flux ``(G, Q)`` between two cells from their properties (:func:`cell_props`: lambda, delta_p and p_v
-    with their derivatives in T and u) and the liquid flux ``gl`` with its derivatives in ``ui``, ``uj``;
-    then the derivatives of G and of Q in ``Ti, ui, Tj, uj``."""
-    a = HALF * dxi
-    b = HALF * dxj
+    ti, lam_ui, lam_ti, rl_i, gl_i, d_ti, d_ui, rd_i, gd_i, pv_i, pv_ti, pv_ui,
+    tj, lam_uj, lam_tj, rl_j, gl_j, d_tj, d_uj, rd_j, gd_j, pv_j, pv_tj, pv_uj,
+    gl, gl_ui, gl_uj,
+):  # fmt: skip
+    """Flux ``(G, Q)`` between two cells from their properties (:func:`cell_props`: the half-cell thermal
+    resistance ``rl = a / lambda`` and ``gl = a / lambda^2`` with ``a`` the half width, the derivatives of
+    lambda, the same ``rd``, ``gd`` of delta_p, its derivatives, p_v and its derivatives in T and u; ``rd``
+    0 for a vapour-tight cell) and the liquid flux ``gl`` with its derivatives in ``ui``, ``uj``; then the
+    derivatives of G and of Q in ``Ti, ui, Tj, uj``."""
     # conduction
-    rh = a / lam_i + b / lam_j
-    q = (ti - tj) / rh
-    ci = q / rh * a / (lam_i * lam_i)
-    cj = q / rh * b / (lam_j * lam_j)
-    q_ti = 1.0 / rh + ci * lam_ti
-    q_tj = -1.0 / rh + cj * lam_tj
+    inv_rh = 1.0 / (rl_i + rl_j)
+    q = (ti - tj) * inv_rh
+    qr = q * inv_rh
+    ci = qr * gl_i
+    cj = qr * gl_j
+    q_ti = inv_rh + ci * lam_ti
+    q_tj = -inv_rh + cj * lam_tj
     q_ui = ci * lam_ui
     q_uj = cj * lam_uj
     # vapour
@@ -172,15 +250,16 @@ def face_flux(
     gv_ui = 0.0
     gv_tj = 0.0
     gv_uj = 0.0
-    if d_i > 0.0 and d_j > 0.0:
-        rv = a / d_i + b / d_j
-        gv = (pv_i - pv_j) / rv
-        ci = gv / rv * a / (d_i * d_i)
-        cj = gv / rv * b / (d_j * d_j)
-        gv_ti = pv_ti / rv + ci * d_ti
-        gv_ui = pv_ui / rv + ci * d_ui
-        gv_tj = -pv_tj / rv + cj * d_tj
-        gv_uj = -pv_uj / rv + cj * d_uj
+    if rd_i > 0.0 and rd_j > 0.0:
+        inv_rv = 1.0 / (rd_i + rd_j)
+        gv = (pv_i - pv_j) * inv_rv
+        gr = gv * inv_rv
+        ci = gr * gd_i
+        cj = gr * gd_j
+        gv_ti = pv_ti * inv_rv + ci * d_ti
+        gv_ui = pv_ui * inv_rv + ci * d_ui
+        gv_tj = -pv_tj * inv_rv + cj * d_tj
+        gv_uj = -pv_uj * inv_rv + cj * d_uj
     tf = HALF * (ti + tj)
     hv = H_V0 + C_VAP * tf
     hl = C_WATER * tf
@@ -293,67 +372,132 @@ def storage(t, u, m, tw, thermal):
 
 
 @inner()
-def solve_block(lo, di, up, r, n, x, dp, rp):
-    """Block-tridiagonal (2x2) solve: lo[i] couples row i to i-1, up[i] to i+1. Returns False if singular."""
+def inverse(a, b, c, d):
+    """The inverse of the 2x2 matrix ``[[a, b], [c, d]]`` (nan entries when singular)."""
+    det = a * d - b * c
+    if det == 0.0:
+        return np.nan, np.nan, np.nan, np.nan
+    inv = 1.0 / det
+    return d * inv, -b * inv, -c * inv, a * inv
+
+
+@inner()
+def eliminate(dn, ln, un, xinv, y0, y1, r0, r1):
+    """One block row of an elimination sweep: ``D - L inv(X) U`` and ``r - L inv(X) y`` (``dn``, ``ln``, ``un``
+    the row's diagonal block, the block coupling it to the eliminated row and that row's block back; ``xinv``
+    the eliminated row's inverse pivot, ``y`` its right-hand side), each block a tuple ``(00, 01, 10, 11)``."""
+    m00 = ln[0] * xinv[0] + ln[1] * xinv[2]
+    m01 = ln[0] * xinv[1] + ln[1] * xinv[3]
+    m10 = ln[2] * xinv[0] + ln[3] * xinv[2]
+    m11 = ln[2] * xinv[1] + ln[3] * xinv[3]
+    a = dn[0] - (m00 * un[0] + m01 * un[2])
+    b = dn[1] - (m00 * un[1] + m01 * un[3])
+    c = dn[2] - (m10 * un[0] + m11 * un[2])
+    d = dn[3] - (m10 * un[1] + m11 * un[3])
+    return (a, b, c, d), r0 - (m00 * y0 + m01 * y1), r1 - (m10 * y0 + m11 * y1)
+
+
+@inner()
+def solve_block(lo, di, up, r, n, x, dinv, rp):
+    """Block-tridiagonal (2x2) solve: lo[i] couples row i to i-1, up[i] to i+1. Returns False if singular.
+
+    Eliminated from both ends at once towards the middle row ``k`` (two independent chains of half the
+    length, which the processor overlaps: the sweep's cost is the latency of one row after another):
+    ``dinv[i]`` receives the inverse pivot of row i and ``rp[i]`` its eliminated right-hand side."""
+    k = n // 2
+    for s in range(k):
+        # downwards, row s from row s - 1
+        i = s
+        if i == 0:
+            p = inverse(di[0, 0, 0], di[0, 0, 1], di[0, 1, 0], di[0, 1, 1])
+            y0 = r[0, 0]
+            y1 = r[0, 1]
+        else:
+            q, y0, y1 = eliminate(
+                (di[i, 0, 0], di[i, 0, 1], di[i, 1, 0], di[i, 1, 1]),
+                (lo[i, 0, 0], lo[i, 0, 1], lo[i, 1, 0], lo[i, 1, 1]),
+                (up[i - 1, 0, 0], up[i - 1, 0, 1], up[i - 1, 1, 0], up[i - 1, 1, 1]),
+                (dinv[i - 1, 0, 0], dinv[i - 1, 0, 1], dinv[i - 1, 1, 0], dinv[i - 1, 1, 1]),
+                rp[i - 1, 0],
+                rp[i - 1, 1],
+                r[i, 0],
+                r[i, 1],
+            )
+            p = inverse(q[0], q[1], q[2], q[3])
+        dinv[i, 0, 0], dinv[i, 0, 1], dinv[i, 1, 0], dinv[i, 1, 1] = p
+        rp[i, 0] = y0
+        rp[i, 1] = y1
+        # upwards, row n - 1 - s from row n - s
+        i = n - 1 - s
+        if i > k:
+            if s == 0:
+                p = inverse(di[i, 0, 0], di[i, 0, 1], di[i, 1, 0], di[i, 1, 1])
+                y0 = r[i, 0]
+                y1 = r[i, 1]
+            else:
+                q, y0, y1 = eliminate(
+                    (di[i, 0, 0], di[i, 0, 1], di[i, 1, 0], di[i, 1, 1]),
+                    (up[i, 0, 0], up[i, 0, 1], up[i, 1, 0], up[i, 1, 1]),
+                    (lo[i + 1, 0, 0], lo[i + 1, 0, 1], lo[i + 1, 1, 0], lo[i + 1, 1, 1]),
+                    (dinv[i + 1, 0, 0], dinv[i + 1, 0, 1], dinv[i + 1, 1, 0], dinv[i + 1, 1, 1]),
+                    rp[i + 1, 0],
+                    rp[i + 1, 1],
+                    r[i, 0],
+                    r[i, 1],
+                )
+                p = inverse(q[0], q[1], q[2], q[3])
+            dinv[i, 0, 0], dinv[i, 0, 1], dinv[i, 1, 0], dinv[i, 1, 1] = p
+            rp[i, 0] = y0
+            rp[i, 1] = y1
+    # the middle row, from both sides
+    a = di[k, 0, 0]
+    b = di[k, 0, 1]
+    c = di[k, 1, 0]
+    d = di[k, 1, 1]
+    y0 = r[k, 0]
+    y1 = r[k, 1]
+    if k > 0:
+        (a, b, c, d), y0, y1 = eliminate(
+            (a, b, c, d),
+            (lo[k, 0, 0], lo[k, 0, 1], lo[k, 1, 0], lo[k, 1, 1]),
+            (up[k - 1, 0, 0], up[k - 1, 0, 1], up[k - 1, 1, 0], up[k - 1, 1, 1]),
+            (dinv[k - 1, 0, 0], dinv[k - 1, 0, 1], dinv[k - 1, 1, 0], dinv[k - 1, 1, 1]),
+            rp[k - 1, 0],
+            rp[k - 1, 1],
+            y0,
+            y1,
+        )
+    if k < n - 1:
+        (a, b, c, d), y0, y1 = eliminate(
+            (a, b, c, d),
+            (up[k, 0, 0], up[k, 0, 1], up[k, 1, 0], up[k, 1, 1]),
+            (lo[k + 1, 0, 0], lo[k + 1, 0, 1], lo[k + 1, 1, 0], lo[k + 1, 1, 1]),
+            (dinv[k + 1, 0, 0], dinv[k + 1, 0, 1], dinv[k + 1, 1, 0], dinv[k + 1, 1, 1]),
+            rp[k + 1, 0],
+            rp[k + 1, 1],
+            y0,
+            y1,
+        )
+    a, b, c, d = inverse(a, b, c, d)
+    x[k, 0] = a * y0 + b * y1
+    x[k, 1] = c * y0 + d * y1
+    # back substitution outwards from the middle row, both directions at once
+    for s in range(1, max(k, n - 1 - k) + 1):
+        i = k - s
+        if i >= 0:
+            r0 = rp[i, 0] - (up[i, 0, 0] * x[i + 1, 0] + up[i, 0, 1] * x[i + 1, 1])
+            r1 = rp[i, 1] - (up[i, 1, 0] * x[i + 1, 0] + up[i, 1, 1] * x[i + 1, 1])
+            x[i, 0] = dinv[i, 0, 0] * r0 + dinv[i, 0, 1] * r1
+            x[i, 1] = dinv[i, 1, 0] * r0 + dinv[i, 1, 1] * r1
+        i = k + s
+        if i < n:
+            r0 = rp[i, 0] - (lo[i, 0, 0] * x[i - 1, 0] + lo[i, 0, 1] * x[i - 1, 1])
+            r1 = rp[i, 1] - (lo[i, 1, 0] * x[i - 1, 0] + lo[i, 1, 1] * x[i - 1, 1])
+            x[i, 0] = dinv[i, 0, 0] * r0 + dinv[i, 0, 1] * r1
+            x[i, 1] = dinv[i, 1, 0] * r0 + dinv[i, 1, 1] * r1
     for i in range(n):
-        a = di[i, 0, 0]
-        b = di[i, 0, 1]
-        c = di[i, 1, 0]
-        d = di[i, 1, 1]
-        r0 = r[i, 0]
-        r1 = r[i, 1]
-        if i > 0:
-            # m = lo[i] inv(dp[i-1])
-            e = dp[i - 1, 0, 0]
-            f = dp[i - 1, 0, 1]
-            g = dp[i - 1, 1, 0]
-            h = dp[i - 1, 1, 1]
-            det = e * h - f * g
-            if det == 0.0 or not math.isfinite(det):
-                return False
-            i00 = h / det
-            i01 = -f / det
-            i10 = -g / det
-            i11 = e / det
-            l00 = lo[i, 0, 0]
-            l01 = lo[i, 0, 1]
-            l10 = lo[i, 1, 0]
-            l11 = lo[i, 1, 1]
-            m00 = l00 * i00 + l01 * i10
-            m01 = l00 * i01 + l01 * i11
-            m10 = l10 * i00 + l11 * i10
-            m11 = l10 * i01 + l11 * i11
-            u00 = up[i - 1, 0, 0]
-            u01 = up[i - 1, 0, 1]
-            u10 = up[i - 1, 1, 0]
-            u11 = up[i - 1, 1, 1]
-            a -= m00 * u00 + m01 * u10
-            b -= m00 * u01 + m01 * u11
-            c -= m10 * u00 + m11 * u10
-            d -= m10 * u01 + m11 * u11
-            r0 -= m00 * rp[i - 1, 0] + m01 * rp[i - 1, 1]
-            r1 -= m10 * rp[i - 1, 0] + m11 * rp[i - 1, 1]
-        dp[i, 0, 0] = a
-        dp[i, 0, 1] = b
-        dp[i, 1, 0] = c
-        dp[i, 1, 1] = d
-        rp[i, 0] = r0
-        rp[i, 1] = r1
-    for i in range(n - 1, -1, -1):
-        r0 = rp[i, 0]
-        r1 = rp[i, 1]
-        if i < n - 1:
-            r0 -= up[i, 0, 0] * x[i + 1, 0] + up[i, 0, 1] * x[i + 1, 1]
-            r1 -= up[i, 1, 0] * x[i + 1, 0] + up[i, 1, 1] * x[i + 1, 1]
-        a = dp[i, 0, 0]
-        b = dp[i, 0, 1]
-        c = dp[i, 1, 0]
-        d = dp[i, 1, 1]
-        det = a * d - b * c
-        if det == 0.0 or not math.isfinite(det):
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
             return False
-        x[i, 0] = (d * r0 - b * r1) / det
-        x[i, 1] = (a * r1 - c * r0) / det
     return True
 
 
@@ -395,9 +539,12 @@ def run_ham(
     up = np.zeros((n, 2, 2))
     res = np.zeros((n, 2))
     x = np.zeros((n, 2))
-    dp = np.zeros((n, 2, 2))
+    dinv = np.zeros((n, 2, 2))
     rp = np.zeros((n, 2))
-    props = np.empty((n, 13))
+    props = np.empty((n, 16))
+    inv_dist = np.zeros(n)  # 1 / the distance between the centres of cells f - 1 and f
+    for f in range(1, n):
+        inv_dist[f] = 1.0 / (HALF * (dx[f - 1] + dx[f]))
     cum_bc = np.zeros(bc.shape)
     for side in range(2):
         for kb in range(1, tb.shape[0]):
@@ -432,6 +579,7 @@ def run_ham(
             un[i] = uc[i] + ratio * rate_u[i]
         converged = False
         it = 0
+        inv_step = 1.0 / step
         while it < max_iter:
             it += 1
             for i in range(n):
@@ -440,6 +588,7 @@ def run_ham(
                 p = cell_props(
                     tn[i],
                     un[i],
+                    HALF * dx[i],
                     thermal[m, 0],
                     thermal[m, 1],
                     thermal[m, 3],
@@ -451,12 +600,12 @@ def run_ham(
                     tk[m, ks + 1],
                     fr,
                 )
-                for q in range(13):
+                for q in range(16):
                     props[i, q] = p[q]
                 w = p[0]
                 dw = p[1]
                 rc = thermal[m, 2] + C_WATER * w
-                c = dx[i] / step
+                c = dx[i] * inv_step
                 res[i, 0] = c * (w - w_old[i])
                 res[i, 1] = c * (rc * tn[i] - e_old[i])
                 for r in range(2):
@@ -472,41 +621,20 @@ def run_ham(
                 i = f - 1
                 j = f
                 if mat[i] == mat[j]:
-                    dist = HALF * (dx[i] + dx[j])
-                    gl = (props[j, 11] - props[i, 11]) / dist
-                    gl_ui = -props[i, 12] / dist
-                    gl_uj = props[j, 12] / dist
+                    gl = (props[j, 14] - props[i, 14]) * inv_dist[f]
+                    gl_ui = -props[i, 15] * inv_dist[f]
+                    gl_uj = props[j, 15] * inv_dist[f]
                 else:
                     gl = liquid_interface(un[i], mat[i], dx[i], un[j], mat[j], dx[j], tk)
                     gl_ui = (liquid_interface(un[i] + hu, mat[i], dx[i], un[j], mat[j], dx[j], tk) - gl) / hu
                     gl_uj = (liquid_interface(un[i], mat[i], dx[i], un[j] + hu, mat[j], dx[j], tk) - gl) / hu
                 g0, q0, a00, a01, b00, b01, a10, a11, b10, b11 = face_flux(
-                    tn[i],
-                    props[i, 2],
-                    props[i, 4],
-                    props[i, 3],
-                    props[i, 5],
-                    props[i, 6],
-                    props[i, 7],
-                    props[i, 8],
-                    props[i, 9],
-                    props[i, 10],
-                    dx[i],
-                    tn[j],
-                    props[j, 2],
-                    props[j, 4],
-                    props[j, 3],
-                    props[j, 5],
-                    props[j, 6],
-                    props[j, 7],
-                    props[j, 8],
-                    props[j, 9],
-                    props[j, 10],
-                    dx[j],
-                    gl,
-                    gl_ui,
-                    gl_uj,
-                )
+                    tn[i], props[i, 2], props[i, 3], props[i, 4], props[i, 5], props[i, 7], props[i, 8],
+                    props[i, 9], props[i, 10], props[i, 11], props[i, 12], props[i, 13],
+                    tn[j], props[j, 2], props[j, 3], props[j, 4], props[j, 5], props[j, 7], props[j, 8],
+                    props[j, 9], props[j, 10], props[j, 11], props[j, 12], props[j, 13],
+                    gl, gl_ui, gl_uj,
+                )  # fmt: skip
                 res[i, 0] += g0
                 res[i, 1] += q0
                 res[j, 0] -= g0
@@ -543,7 +671,7 @@ def run_ham(
             for i in range(n):
                 res[i, 0] = -res[i, 0]
                 res[i, 1] = -res[i, 1]
-            if not solve_block(lo, di, up, res, n, x, dp, rp):
+            if not solve_block(lo, di, up, res, n, x, dinv, rp):
                 break
             big_t = 0.0
             big_u = 0.0
