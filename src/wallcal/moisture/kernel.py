@@ -31,9 +31,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-from ..jit import inner, kernel
+from ..jit import FLAGS, inner, kernel
 from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_GRID, U_MAX, U_MIN
+
+#: the decorator of the functions of scalars in the Newton loop: inlined by numba (LLVM left them as calls)
+hot = njit(**FLAGS, inline="always", no_cpython_wrapper=True)
 
 H_V0 = 2.501e6  # J/kg, latent heat at 0 degC
 C_VAP = 1870.0  # J/(kg K)
@@ -45,7 +49,7 @@ INV_KELVIN = 1.0 / KELVIN
 DAMP_U = 2.0  # largest Newton update of ln pc (a larger one took more iterations in the rain year)
 
 
-@inner()
+@hot
 def segment(u):
     """Index ``i`` of the table segment holding ``u`` and the fraction ``f`` along it (the end segments
     extended)."""
@@ -129,7 +133,7 @@ def _tables(u_grid):
 PHI_TAB, PHI_U_TAB, PSAT_TAB, PSAT_SA, PSAT_SB = _tables(U_GRID)
 
 
-@inner()
+@hot
 def hermite(ya, yb, sa, sb, f, h, inv_h):
     """Cubic Hermite interpolant at fraction ``f`` of a segment of width ``h`` with end values ``ya``, ``yb``
     and end slopes ``sa``, ``sb``: value and slope."""
@@ -141,7 +145,7 @@ def hermite(ya, yb, sa, sb, f, h, inv_h):
     return y, dy
 
 
-@inner()
+@hot
 def psat_slope(t):
     """Saturation vapour pressure [Pa] at ``t`` [degC] and its slope [Pa/K], from the table."""
     if not (T_LO <= t < T_HI):
@@ -151,7 +155,7 @@ def psat_slope(t):
     return hermite(PSAT_TAB[k], PSAT_TAB[k + 1], PSAT_SA[k], PSAT_SB[k], s - k, DT_TAB, INV_DT_TAB)
 
 
-@inner()
+@hot
 def kelvin(u):
     """Relative humidity at ``u = ln pc`` and its slope dphi/du, from the table."""
     if not (U_MIN <= u <= U_MAX):
@@ -180,7 +184,7 @@ def node_props(t, u, m, tw, td, thermal):
     return w, lam, d, vapour_pressure(t, u)
 
 
-@inner()
+@hot
 def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, f):
     """A cell's properties and their derivatives from its table segment's end values (``*_a``, ``*_b``,
     fraction ``f``) and its half width ``half`` [m]: ``(w, dw/du, dlambda/du, dlambda/dT, half/lambda,
@@ -223,7 +227,7 @@ def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, 
     )
 
 
-@inner()
+@hot
 def face_flux(
     ti, lam_ui, lam_ti, rl_i, gl_i, d_ti, d_ui, rd_i, gd_i, pv_i, pv_ti, pv_ui,
     tj, lam_uj, lam_tj, rl_j, gl_j, d_tj, d_uj, rd_j, gd_j, pv_j, pv_tj, pv_uj,
