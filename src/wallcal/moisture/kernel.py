@@ -601,8 +601,24 @@ def run_ham(
                     tk[m, ks + 1],
                     fr,
                 )
-                for q in range(16):
-                    props[i, q] = p[q]
+                (
+                    props[i, 0],
+                    props[i, 1],
+                    props[i, 2],
+                    props[i, 3],
+                    props[i, 4],
+                    props[i, 5],
+                    props[i, 6],
+                    props[i, 7],
+                    props[i, 8],
+                    props[i, 9],
+                    props[i, 10],
+                    props[i, 11],
+                    props[i, 12],
+                    props[i, 13],
+                    props[i, 14],
+                    props[i, 15],
+                ) = p
                 w = p[0]
                 dw = p[1]
                 rc = thermal[m, 2] + C_WATER * w
