@@ -98,10 +98,11 @@ def kelvin_exact(u):
     return phi, -phi * x
 
 
-# Tables of the two closed forms that every cell evaluates each Newton iteration (exp is most of their
-# cost): cubic Hermite interpolation from the values and slopes at the nodes, so the interpolant and its
-# slope are continuous (no kink for Newton) and within 1e-12 (relative) of the closed forms
-# (tests/test_moisture_ham.py); outside the tables the closed forms.
+# Tables of the two closed forms that every cell evaluates each Newton iteration (their exp calls were
+# about an eighth of the run time): cubic Hermite interpolation from the values and slopes at the nodes, so
+# the interpolant and its slope are continuous (no kink for Newton) and within 1e-11 (relative) of the
+# closed forms (tests/test_moisture_ham.py); outside the tables the closed forms. Each segment holds its
+# cubic's coefficients in the fraction f along it, ``y = c0 + f (c1 + f (c2 + f c3))``.
 T_LO = -80.0  # degC
 T_HI = 120.0
 DT_TAB = 0.05  # K (a node at 0 degC, where the formula changes)
@@ -109,40 +110,45 @@ N_T = int(round((T_HI - T_LO) / DT_TAB)) + 1
 INV_DT_TAB = 1.0 / DT_TAB
 
 
+@hot
+def hermite_coefficients(ya, yb, sa, sb, h, out, k):
+    """Row ``k`` of ``out``: the cubic in the fraction f of a segment of width ``h`` with end values ``ya``,
+    ``yb`` and end slopes ``sa``, ``sb``."""
+    out[k, 0] = ya
+    out[k, 1] = h * sa
+    out[k, 2] = 3.0 * (yb - ya) - h * (2.0 * sa + sb)
+    out[k, 3] = 2.0 * (ya - yb) + h * (sa + sb)
+
+
 @kernel
 def _tables(u_grid):
     n = u_grid.shape[0]
-    phi = np.empty(n)
-    phi_u = np.empty(n)
-    for k in range(n):
-        phi[k], phi_u[k] = kelvin_exact(u_grid[k])
-    ps = np.empty(N_T)
-    slope_a = np.empty(N_T - 1)  # slope at each segment's two ends, by the segment's side of 0 degC
-    slope_b = np.empty(N_T - 1)
+    phi = np.empty((n - 1, 4))
+    for k in range(n - 1):
+        ya, sa = kelvin_exact(u_grid[k])
+        yb, sb = kelvin_exact(u_grid[k + 1])
+        hermite_coefficients(ya, yb, sa, sb, DU, phi, k)
+    ps = np.empty((N_T - 1, 4))
     zero = int(round(-T_LO / DT_TAB))
     nodes = T_LO + DT_TAB * np.arange(N_T)
     nodes[zero] = 0.0
-    for k in range(N_T):
-        ps[k] = psat_exact(nodes[k])[0]
     for k in range(N_T - 1):
-        slope_a[k] = psat_formula(nodes[k], k < zero)[1]
-        slope_b[k] = psat_formula(nodes[k + 1], k < zero)[1]
-    return phi, phi_u, ps, slope_a, slope_b
+        ya, sa = psat_formula(nodes[k], k < zero)  # the formula of the segment's side of 0 degC
+        yb, sb = psat_formula(nodes[k + 1], k < zero)
+        hermite_coefficients(ya, yb, sa, sb, DT_TAB, ps, k)
+    return phi, ps
 
 
-PHI_TAB, PHI_U_TAB, PSAT_TAB, PSAT_SA, PSAT_SB = _tables(U_GRID)
+PHI_TAB, PSAT_TAB = _tables(U_GRID)
 
 
 @hot
-def hermite(ya, yb, sa, sb, f, h, inv_h):
-    """Cubic Hermite interpolant at fraction ``f`` of a segment of width ``h`` with end values ``ya``, ``yb``
-    and end slopes ``sa``, ``sb``: value and slope."""
-    f2 = f * f
-    f3 = f2 * f
-    y = (2.0 * f3 - 3.0 * f2 + 1.0) * ya + (f3 - 2.0 * f2 + f) * h * sa + (3.0 * f2 - 2.0 * f3) * yb
-    y += (f3 - f2) * h * sb
-    dy = 6.0 * (f2 - f) * (ya - yb) * inv_h + (3.0 * f2 - 4.0 * f + 1.0) * sa + (3.0 * f2 - 2.0 * f) * sb
-    return y, dy
+def cubic(c, k, f, inv_h):
+    """Value and slope of segment ``k`` of table ``c`` at fraction ``f`` (segment width ``1 / inv_h``)."""
+    c1 = c[k, 1]
+    c2 = c[k, 2]
+    c3 = c[k, 3]
+    return c[k, 0] + f * (c1 + f * (c2 + f * c3)), (c1 + f * (2.0 * c2 + 3.0 * f * c3)) * inv_h
 
 
 @hot
@@ -152,7 +158,7 @@ def psat_slope(t):
         return psat_exact(t)
     s = (t - T_LO) * INV_DT_TAB
     k = min(int(s), N_T - 2)
-    return hermite(PSAT_TAB[k], PSAT_TAB[k + 1], PSAT_SA[k], PSAT_SB[k], s - k, DT_TAB, INV_DT_TAB)
+    return cubic(PSAT_TAB, k, s - k, INV_DT_TAB)
 
 
 @hot
@@ -161,7 +167,7 @@ def kelvin(u):
     if not (U_MIN <= u <= U_MAX):
         return kelvin_exact(u)
     i, f = segment(u)
-    return hermite(PHI_TAB[i], PHI_TAB[i + 1], PHI_U_TAB[i], PHI_U_TAB[i + 1], f, DU, INV_DU)
+    return cubic(PHI_TAB, i, f, INV_DU)
 
 
 @hot
