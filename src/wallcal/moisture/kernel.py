@@ -288,7 +288,7 @@ def face_flux(
     )
 
 
-@hot
+@inner()
 def liquid_interface(ui, mi, dxi, uj, mj, dxj, tk):
     """Liquid flux from cell i (material mi) to cell j (material mj): each half cell's secant conductance
     ``dPhi/dpc`` between the two suctions, in series."""
