@@ -46,6 +46,7 @@ HALF = 0.5
 NB_COLS = 6
 INV_DU = 1.0 / DU
 INV_KELVIN = 1.0 / KELVIN
+DPHI_STEP = 0.05  # a step's target change of RH where it is a smaller measure than the change of ln pc
 DAMP_U = 2.0  # largest Newton update of ln pc (a larger one took more iterations in the rain year)
 
 
@@ -759,7 +760,10 @@ def run_ham(
         big_w = 0.0
         for i in range(n):
             big_t = max(big_t, abs(tn[i] - tc[i]))
-            big_u = max(big_u, abs(un[i] - uc[i]))
+            # the change of ln pc, or near saturation (RH above about 0.95) the change of RH / DPHI_STEP
+            # if smaller: there ln pc swings by whole units for RH changes of 1e-6 (condensation on a
+            # vapour-tight layer), which held the steps to seconds for no accuracy
+            big_u = max(big_u, min(abs(un[i] - uc[i]), abs(kelvin(un[i])[0] - kelvin(uc[i])[0]) / DPHI_STEP))
             rate_t[i] = tn[i] - tc[i]
             rate_u[i] = un[i] - uc[i]
             tc[i] = tn[i]
@@ -778,7 +782,7 @@ def run_ham(
             flux_out[k, :, :] = cum
             k += 1
         # next step: by the change of this one (targets 2 K, 2 % of the capillary saturation's water content
-        # and 1 in ln pc) and the Newton effort
+        # and 1 in ln pc, or DPHI_STEP in RH where that is less) and the Newton effort
         grow = 2.0
         if big_t > 0.0:
             grow = min(grow, 2.0 / big_t)
