@@ -31,46 +31,159 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-from ..jit import inner, kernel
-from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_MIN
+from ..jit import FLAGS, inner, kernel
+from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_GRID, U_MAX, U_MIN
+
+#: the decorator of the functions the Newton loop calls: inlined into it by numba. As calls, each array
+#: argument or view cost two atomic reference count operations (most of the run time before), and LLVM
+#: left the table lookups as calls; each inlined call site costs compile time (one call site each here).
+hot = njit(**FLAGS, inline="always", no_cpython_wrapper=True)
 
 H_V0 = 2.501e6  # J/kg, latent heat at 0 degC
 C_VAP = 1870.0  # J/(kg K)
 HALF = 0.5
 
 NB_COLS = 6
+INV_DU = 1.0 / DU
+INV_KELVIN = 1.0 / KELVIN
+DPHI_STEP = 0.05  # a step's target change of RH where it is a smaller measure than the change of ln pc
 DAMP_U = 2.0  # largest Newton update of ln pc (a larger one took more iterations in the rain year)
 
 
-@inner()
-def interp(tab, m, u):
-    """Table value and slope at ``u`` (linear; extrapolated with the end segments)."""
-    s = (u - U_MIN) / DU
+@hot
+def segment(u):
+    """Index ``i`` of the table segment holding ``u`` and the fraction ``f`` along it (the end segments
+    extended)."""
+    s = (u - U_MIN) * INV_DU
     i = int(math.floor(s))
     if i < 0:
         i = 0
     elif i > N_TABLE - 2:
         i = N_TABLE - 2
-    f = s - i
+    return i, s - i
+
+
+@hot
+def interp(tab, m, u):
+    """Table value and slope at ``u`` (linear; extrapolated with the end segments)."""
+    i, f = segment(u)
     a = tab[m, i]
     b = tab[m, i + 1]
-    return a + (b - a) * f, (b - a) / DU
+    return a + (b - a) * f, (b - a) * INV_DU
 
 
 @inner()
+def psat_formula(t, ice):
+    """Saturation vapour pressure [Pa] at ``t`` [degC] and its slope [Pa/K] (EN ISO 13788), over ice or
+    over water."""
+    if ice:
+        r = 1.0 / (265.5 + t)
+        p = 610.5 * math.exp(21.875 * t * r)
+        return p, p * 21.875 * 265.5 * r * r
+    r = 1.0 / (237.3 + t)
+    p = 610.5 * math.exp(17.269 * t * r)
+    return p, p * 17.269 * 237.3 * r * r
+
+
+@inner()
+def psat_exact(t):
+    """:func:`psat_formula` over ice below 0 degC."""
+    return psat_formula(t, t < 0.0)
+
+
+@inner()
+def kelvin_exact(u):
+    """Relative humidity ``phi = exp(-pc / KELVIN)`` at ``u = ln pc`` and its slope dphi/du."""
+    x = math.exp(u) * INV_KELVIN
+    phi = math.exp(-x)
+    return phi, -phi * x
+
+
+# Tables of the two closed forms that every cell evaluates each Newton iteration (their exp calls were
+# about an eighth of the run time): cubic Hermite interpolation from the values and slopes at the nodes, so
+# the interpolant and its slope are continuous (no kink for Newton) and within 1e-11 (relative) of the
+# closed forms (tests/test_moisture_ham.py); outside the tables the closed forms. Each segment holds its
+# cubic's coefficients in the fraction f along it, ``y = c0 + f (c1 + f (c2 + f c3))``.
+T_LO = -80.0  # degC
+T_HI = 120.0
+DT_TAB = 0.05  # K (a node at 0 degC, where the formula changes)
+N_T = int(round((T_HI - T_LO) / DT_TAB)) + 1
+INV_DT_TAB = 1.0 / DT_TAB
+
+
+@hot
+def hermite_coefficients(ya, yb, sa, sb, h, out, k):
+    """Row ``k`` of ``out``: the cubic in the fraction f of a segment of width ``h`` with end values ``ya``,
+    ``yb`` and end slopes ``sa``, ``sb``."""
+    out[k, 0] = ya
+    out[k, 1] = h * sa
+    out[k, 2] = 3.0 * (yb - ya) - h * (2.0 * sa + sb)
+    out[k, 3] = 2.0 * (ya - yb) + h * (sa + sb)
+
+
+@kernel
+def _tables(u_grid):
+    n = u_grid.shape[0]
+    phi = np.empty((n - 1, 4))
+    for k in range(n - 1):
+        ya, sa = kelvin_exact(u_grid[k])
+        yb, sb = kelvin_exact(u_grid[k + 1])
+        hermite_coefficients(ya, yb, sa, sb, DU, phi, k)
+    ps = np.empty((N_T - 1, 4))
+    zero = int(round(-T_LO / DT_TAB))
+    nodes = T_LO + DT_TAB * np.arange(N_T)
+    nodes[zero] = 0.0
+    for k in range(N_T - 1):
+        ya, sa = psat_formula(nodes[k], k < zero)  # the formula of the segment's side of 0 degC
+        yb, sb = psat_formula(nodes[k + 1], k < zero)
+        hermite_coefficients(ya, yb, sa, sb, DT_TAB, ps, k)
+    return phi, ps
+
+
+PHI_TAB, PSAT_TAB = _tables(U_GRID)
+
+
+@hot
+def cubic(c, k, f, inv_h):
+    """Value and slope of segment ``k`` of table ``c`` at fraction ``f`` (segment width ``1 / inv_h``)."""
+    c1 = c[k, 1]
+    c2 = c[k, 2]
+    c3 = c[k, 3]
+    return c[k, 0] + f * (c1 + f * (c2 + f * c3)), (c1 + f * (2.0 * c2 + 3.0 * f * c3)) * inv_h
+
+
+@hot
+def psat_slope(t):
+    """Saturation vapour pressure [Pa] at ``t`` [degC] and its slope [Pa/K], from the table."""
+    if not (T_LO <= t < T_HI):
+        return psat_exact(t)
+    s = (t - T_LO) * INV_DT_TAB
+    k = min(int(s), N_T - 2)
+    return cubic(PSAT_TAB, k, s - k, INV_DT_TAB)
+
+
+@hot
+def kelvin(u):
+    """Relative humidity at ``u = ln pc`` and its slope dphi/du, from the table."""
+    if not (U_MIN <= u <= U_MAX):
+        return kelvin_exact(u)
+    i, f = segment(u)
+    return cubic(PHI_TAB, i, f, INV_DU)
+
+
+@hot
 def psat(t):
-    if t >= 0.0:
-        return 610.5 * math.exp(17.269 * t / (237.3 + t))
-    return 610.5 * math.exp(21.875 * t / (265.5 + t))
+    return psat_slope(t)[0]
 
 
-@inner()
+@hot
 def vapour_pressure(t, u):
-    return math.exp(-math.exp(u) / KELVIN) * psat(t)
+    return kelvin(u)[0] * psat(t)
 
 
-@inner()
+@hot
 def node_props(t, u, m, tw, td, thermal):
     """``(w, lambda, delta_p, p_v)`` of a cell."""
     w, _ = interp(tw, m, u)
@@ -80,81 +193,102 @@ def node_props(t, u, m, tw, td, thermal):
     return w, lam, d, vapour_pressure(t, u)
 
 
-@inner()
-def dln_psat_dt(t):
-    if t >= 0.0:
-        return 17.269 * 237.3 / ((237.3 + t) * (237.3 + t))
-    return 21.875 * 265.5 / ((265.5 + t) * (265.5 + t))
+@hot
+def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, f):
+    """A cell's properties and their derivatives from its table segment's end values (``*_a``, ``*_b``,
+    fraction ``f``) and its half width ``half`` [m]: ``(w, dw/du, dlambda/du, dlambda/dT, half/lambda,
+    half/lambda^2, delta_p, ddelta/dT, ddelta/du, half/delta_p, half/delta_p^2, p_v, dp_v/dT, dp_v/du, Phi,
+    dPhi/du)`` (the half-cell resistances as :func:`face_flux` takes them; 0 for a vapour-tight cell).
+    Scalars only: an array passed to a compiled function costs two atomic reference count operations a
+    call, which were most of the kernel's time; and one division per quantity, reused by both faces."""
+    w = w_a + (w_b - w_a) * f
+    dw = (w_b - w_a) * INV_DU
+    inv_lam = 1.0 / (lam_dry + lam_w * w + lam_t * t)
+    r_lam = half * inv_lam
+    inv_tk = 1.0 / (t + 273.15)
+    scale = T_REF * inv_tk
+    d = (d_a + (d_b - d_a) * f) * scale
+    r_d = 0.0
+    g_d = 0.0
+    if d > 0.0:
+        inv_d = 1.0 / d
+        r_d = half * inv_d
+        g_d = r_d * inv_d
+    phi, phi_u = kelvin(u)
+    ps, ps_t = psat_slope(t)
+    return (
+        w,
+        dw,
+        lam_w * dw,
+        lam_t,
+        r_lam,
+        r_lam * inv_lam,
+        d,
+        -d * inv_tk,
+        (d_b - d_a) * INV_DU * scale,
+        r_d,
+        g_d,
+        phi * ps,
+        phi * ps_t,
+        phi_u * ps,
+        k_a + (k_b - k_a) * f,
+        (k_b - k_a) * INV_DU,
+    )
 
 
-@inner()
-def cell_props(t, u, m, tw, tk, td, thermal, out):
-    """A cell's properties and their derivatives, into ``out``: 0 w, 1 dw/du, 2 lambda, 3 dlambda/du,
-    4 delta_p, 5 ddelta/dT, 6 ddelta/du, 7 p_v, 8 dp_v/dT, 9 dp_v/du, 10 Phi, 11 dPhi/du, 12 dlambda/dT."""
-    w, dw = interp(tw, m, u)
-    out[0] = w
-    out[1] = dw
-    out[2] = thermal[m, 0] + thermal[m, 1] * w + thermal[m, 3] * t
-    out[3] = thermal[m, 1] * dw
-    out[12] = thermal[m, 3]
-    d, dd = interp(td, m, u)
-    tk_ = t + 273.15
-    out[4] = d * T_REF / tk_
-    out[5] = -out[4] / tk_
-    out[6] = dd * T_REF / tk_
-    pc = math.exp(u)
-    phi = math.exp(-pc / KELVIN)
-    ps = psat(t)
-    out[7] = phi * ps
-    out[8] = out[7] * dln_psat_dt(t)
-    out[9] = -out[7] * pc / KELVIN
-    k, dk = interp(tk, m, u)
-    out[10] = k
-    out[11] = dk
-
-
-@inner()
-def face_flux(ti, pi, dxi, tj, pj, dxj, jac, gl, gl_ui, gl_uj):
-    """Flux ``(G, Q)`` between two cells from their properties ``pi``, ``pj`` (:func:`cell_props`) and the
-    liquid flux ``gl`` with its derivatives in ``ui``, ``uj``; the derivatives of ``(G, Q)`` go into
-    ``jac[0:2, 0:4]`` (rows G, Q; columns Ti, ui, Tj, uj)."""
-    a = HALF * dxi
-    b = HALF * dxj
+@hot
+def face_flux(
+    ti, lam_ui, lam_ti, rl_i, gl_i, d_ti, d_ui, rd_i, gd_i, pv_i, pv_ti, pv_ui,
+    tj, lam_uj, lam_tj, rl_j, gl_j, d_tj, d_uj, rd_j, gd_j, pv_j, pv_tj, pv_uj,
+    gl, gl_ui, gl_uj,
+):  # fmt: skip
+    """Flux ``(G, Q)`` between two cells from their properties (:func:`cell_props`: the half-cell thermal
+    resistance ``rl = a / lambda`` and ``gl = a / lambda^2`` with ``a`` the half width, the derivatives of
+    lambda, the same ``rd``, ``gd`` of delta_p, its derivatives, p_v and its derivatives in T and u; ``rd``
+    0 for a vapour-tight cell) and the liquid flux ``gl`` with its derivatives in ``ui``, ``uj``; then the
+    derivatives of G and of Q in ``Ti, ui, Tj, uj``."""
     # conduction
-    rh = a / pi[2] + b / pj[2]
-    q = (ti - tj) / rh
-    q_ti = 1.0 / rh + q / rh * a / (pi[2] * pi[2]) * pi[12]
-    q_tj = -1.0 / rh + q / rh * b / (pj[2] * pj[2]) * pj[12]
-    q_ui = q / rh * a / (pi[2] * pi[2]) * pi[3]
-    q_uj = q / rh * b / (pj[2] * pj[2]) * pj[3]
+    inv_rh = 1.0 / (rl_i + rl_j)
+    q = (ti - tj) * inv_rh
+    qr = q * inv_rh
+    ci = qr * gl_i
+    cj = qr * gl_j
+    q_ti = inv_rh + ci * lam_ti
+    q_tj = -inv_rh + cj * lam_tj
+    q_ui = ci * lam_ui
+    q_uj = cj * lam_uj
     # vapour
     gv = 0.0
     gv_ti = 0.0
     gv_ui = 0.0
     gv_tj = 0.0
     gv_uj = 0.0
-    if pi[4] > 0.0 and pj[4] > 0.0:
-        rv = a / pi[4] + b / pj[4]
-        dpv = pi[7] - pj[7]
-        gv = dpv / rv
-        ci = gv / rv * a / (pi[4] * pi[4])
-        cj = gv / rv * b / (pj[4] * pj[4])
-        gv_ti = pi[8] / rv + ci * pi[5]
-        gv_ui = pi[9] / rv + ci * pi[6]
-        gv_tj = -pj[8] / rv + cj * pj[5]
-        gv_uj = -pj[9] / rv + cj * pj[6]
+    if rd_i > 0.0 and rd_j > 0.0:
+        inv_rv = 1.0 / (rd_i + rd_j)
+        gv = (pv_i - pv_j) * inv_rv
+        gr = gv * inv_rv
+        ci = gr * gd_i
+        cj = gr * gd_j
+        gv_ti = pv_ti * inv_rv + ci * d_ti
+        gv_ui = pv_ui * inv_rv + ci * d_ui
+        gv_tj = -pv_tj * inv_rv + cj * d_tj
+        gv_uj = -pv_uj * inv_rv + cj * d_uj
     tf = HALF * (ti + tj)
     hv = H_V0 + C_VAP * tf
     hl = C_WATER * tf
-    jac[0, 0] = gv_ti
-    jac[0, 1] = gv_ui + gl_ui
-    jac[0, 2] = gv_tj
-    jac[0, 3] = gv_uj + gl_uj
-    jac[1, 0] = q_ti + gv_ti * hv + HALF * C_VAP * gv + HALF * C_WATER * gl
-    jac[1, 1] = q_ui + gv_ui * hv + gl_ui * hl
-    jac[1, 2] = q_tj + gv_tj * hv + HALF * C_VAP * gv + HALF * C_WATER * gl
-    jac[1, 3] = q_uj + gv_uj * hv + gl_uj * hl
-    return gv + gl, q + gv * hv + gl * hl
+    carried = HALF * C_VAP * gv + HALF * C_WATER * gl
+    return (
+        gv + gl,
+        q + gv * hv + gl * hl,
+        gv_ti,
+        gv_ui + gl_ui,
+        gv_tj,
+        gv_uj + gl_uj,
+        q_ti + gv_ti * hv + carried,
+        q_ui + gv_ui * hv + gl_ui * hl,
+        q_tj + gv_tj * hv + carried,
+        q_uj + gv_uj * hv + gl_uj * hl,
+    )
 
 
 @inner()
@@ -178,14 +312,15 @@ def liquid_interface(ui, mi, dxi, uj, mj, dxj, tk):
     return 0.0
 
 
-@inner()
-def boundary_flux(kind, b, t, u, m, dx, tw, tk, td, thermal):
-    """Moisture and energy flux into the wall through one face, and the rain that runs off."""
+@hot
+def boundary_flux(kind, bs, side, t, u, m, dx, tw, tk, td, thermal):
+    """Moisture and energy flux into the wall through one face, and the rain that runs off (``bs[side]`` the
+    face's boundary data over the step)."""
     w, lam, d, pv = node_props(t, u, m, tw, td, thermal)
     half = HALF * dx
     if kind == 0:
-        ts = b[0]
-        us = b[1]
+        ts = bs[side, 0]
+        us = bs[side, 1]
         q = lam / half * (ts - t)
         gv = d / half * (vapour_pressure(ts, us) - pv)
         phi_n, _ = interp(tk, m, u)
@@ -193,24 +328,24 @@ def boundary_flux(kind, b, t, u, m, dx, tw, tk, td, thermal):
         gl = (phi_n - phi_s) / half
         tf = HALF * (ts + t)
         return gv + gl, q + gv * (H_V0 + C_VAP * tf) + gl * C_WATER * tf, 0.0
-    ta = b[0]
+    ta = bs[side, 0]
     q = 0.0
-    if b[2] > 0.0:
-        q = (ta - t) / (1.0 / b[2] + half / lam)
+    if bs[side, 2] > 0.0:
+        q = (ta - t) / (1.0 / bs[side, 2] + half / lam)
     gv = 0.0
-    if b[3] > 0.0 and d > 0.0:
-        gv = (b[1] - pv) / (1.0 / b[3] + half / d)
+    if bs[side, 3] > 0.0 and d > 0.0:
+        gv = (bs[side, 1] - pv) / (1.0 / bs[side, 3] + half / d)
     gl = 0.0
     runoff = 0.0
-    if b[4] > 0.0:
+    if bs[side, 4] > 0.0:
         phi_n, _ = interp(tk, m, u)
         phi_sat, _ = interp(tk, m, U_MIN)
         gmax = (phi_n - phi_sat) / half
         if gmax < 0.0:
             gmax = 0.0
-        gl = min(b[4], gmax)
-        runoff = b[4] - gl
-    return gv + gl, q + b[5] + gv * (H_V0 + C_VAP * t) + gl * C_WATER * ta, runoff
+        gl = min(bs[side, 4], gmax)
+        runoff = bs[side, 4] - gl
+    return gv + gl, q + bs[side, 5] + gv * (H_V0 + C_VAP * t) + gl * C_WATER * ta, runoff
 
 
 @inner()
@@ -236,11 +371,12 @@ def bc_integral(bc, cum, tb, side, c, time):
 
 
 @inner()
-def bc_mean(bc, cum, tb, side, t0, t1, out):
-    """The boundary data averaged over the step ``[t0, t1]`` (so that a supplied flux such as rain is
-    integrated exactly, whatever the steps)."""
-    for c in range(NB_COLS):
-        out[c] = (bc_integral(bc, cum, tb, side, c, t1) - bc_integral(bc, cum, tb, side, c, t0)) / (t1 - t0)
+def bc_mean(bc, cum, tb, t0, t1, out):
+    """The boundary data averaged over the step ``[t0, t1]``, ``out[side]`` (so that a supplied flux such as
+    rain is integrated exactly, whatever the steps)."""
+    for side in range(2):
+        for c in range(NB_COLS):
+            out[side, c] = (bc_integral(bc, cum, tb, side, c, t1) - bc_integral(bc, cum, tb, side, c, t0)) / (t1 - t0)
 
 
 @inner()
@@ -250,69 +386,131 @@ def storage(t, u, m, tw, thermal):
     return w, (thermal[m, 2] + C_WATER * w) * t, dw
 
 
-@inner()
-def solve_block(lo, di, up, r, n, x, dp, rp):
-    """Block-tridiagonal (2x2) solve: lo[i] couples row i to i-1, up[i] to i+1. Returns False if singular."""
-    for i in range(n):
-        a = di[i, 0, 0]
-        b = di[i, 0, 1]
-        c = di[i, 1, 0]
-        d = di[i, 1, 1]
-        r0 = r[i, 0]
-        r1 = r[i, 1]
-        if i > 0:
-            # m = lo[i] inv(dp[i-1])
-            e = dp[i - 1, 0, 0]
-            f = dp[i - 1, 0, 1]
-            g = dp[i - 1, 1, 0]
-            h = dp[i - 1, 1, 1]
-            det = e * h - f * g
-            if det == 0.0 or not math.isfinite(det):
-                return False
-            i00 = h / det
-            i01 = -f / det
-            i10 = -g / det
-            i11 = e / det
-            l00 = lo[i, 0, 0]
-            l01 = lo[i, 0, 1]
-            l10 = lo[i, 1, 0]
-            l11 = lo[i, 1, 1]
-            m00 = l00 * i00 + l01 * i10
-            m01 = l00 * i01 + l01 * i11
-            m10 = l10 * i00 + l11 * i10
-            m11 = l10 * i01 + l11 * i11
-            u00 = up[i - 1, 0, 0]
-            u01 = up[i - 1, 0, 1]
-            u10 = up[i - 1, 1, 0]
-            u11 = up[i - 1, 1, 1]
-            a -= m00 * u00 + m01 * u10
-            b -= m00 * u01 + m01 * u11
-            c -= m10 * u00 + m11 * u10
-            d -= m10 * u01 + m11 * u11
-            r0 -= m00 * rp[i - 1, 0] + m01 * rp[i - 1, 1]
-            r1 -= m10 * rp[i - 1, 0] + m11 * rp[i - 1, 1]
-        dp[i, 0, 0] = a
-        dp[i, 0, 1] = b
-        dp[i, 1, 0] = c
-        dp[i, 1, 1] = d
-        rp[i, 0] = r0
-        rp[i, 1] = r1
-    for i in range(n - 1, -1, -1):
-        r0 = rp[i, 0]
-        r1 = rp[i, 1]
-        if i < n - 1:
-            r0 -= up[i, 0, 0] * x[i + 1, 0] + up[i, 0, 1] * x[i + 1, 1]
-            r1 -= up[i, 1, 0] * x[i + 1, 0] + up[i, 1, 1] * x[i + 1, 1]
-        a = dp[i, 0, 0]
-        b = dp[i, 0, 1]
-        c = dp[i, 1, 0]
-        d = dp[i, 1, 1]
-        det = a * d - b * c
-        if det == 0.0 or not math.isfinite(det):
-            return False
-        x[i, 0] = (d * r0 - b * r1) / det
-        x[i, 1] = (a * r1 - c * r0) / det
-    return True
+@hot
+def inverse(a, b, c, d):
+    """The inverse of the 2x2 matrix ``[[a, b], [c, d]]`` (nan entries when singular)."""
+    det = a * d - b * c
+    if det == 0.0:
+        return np.nan, np.nan, np.nan, np.nan
+    inv = 1.0 / det
+    return d * inv, -b * inv, -c * inv, a * inv
+
+
+@hot
+def eliminate(dn, ln, un, xinv, y0, y1, r0, r1):
+    """One block row of an elimination sweep: ``D - L inv(X) U`` and ``r - L inv(X) y`` (``dn``, ``ln``, ``un``
+    the row's diagonal block, the block coupling it to the eliminated row and that row's block back; ``xinv``
+    the eliminated row's inverse pivot, ``y`` its right-hand side), each block a tuple ``(00, 01, 10, 11)``."""
+    m00 = ln[0] * xinv[0] + ln[1] * xinv[2]
+    m01 = ln[0] * xinv[1] + ln[1] * xinv[3]
+    m10 = ln[2] * xinv[0] + ln[3] * xinv[2]
+    m11 = ln[2] * xinv[1] + ln[3] * xinv[3]
+    a = dn[0] - (m00 * un[0] + m01 * un[2])
+    b = dn[1] - (m00 * un[1] + m01 * un[3])
+    c = dn[2] - (m10 * un[0] + m11 * un[2])
+    d = dn[3] - (m10 * un[1] + m11 * un[3])
+    return (a, b, c, d), r0 - (m00 * y0 + m01 * y1), r1 - (m10 * y0 + m11 * y1)
+
+
+@hot
+def solve_block(lo, di, up, r, n, x, dinv, rp):
+    """Block-tridiagonal (2x2) solve: lo[i] couples row i to i-1, up[i] to i+1. A singular system gives nan
+    in ``x`` (the caller checks).
+
+    Eliminated from both ends at once towards the middle row ``k`` (two independent chains of half the
+    length, which the processor overlaps: the sweep's cost is the latency of one row after another):
+    ``dinv[i]`` receives the inverse pivot of row i and ``rp[i]`` its eliminated right-hand side."""
+    k = n // 2
+    for s in range(k):
+        # downwards, row s from row s - 1
+        i = s
+        if i == 0:
+            p = inverse(di[0, 0, 0], di[0, 0, 1], di[0, 1, 0], di[0, 1, 1])
+            y0 = r[0, 0]
+            y1 = r[0, 1]
+        else:
+            q, y0, y1 = eliminate(
+                (di[i, 0, 0], di[i, 0, 1], di[i, 1, 0], di[i, 1, 1]),
+                (lo[i, 0, 0], lo[i, 0, 1], lo[i, 1, 0], lo[i, 1, 1]),
+                (up[i - 1, 0, 0], up[i - 1, 0, 1], up[i - 1, 1, 0], up[i - 1, 1, 1]),
+                (dinv[i - 1, 0, 0], dinv[i - 1, 0, 1], dinv[i - 1, 1, 0], dinv[i - 1, 1, 1]),
+                rp[i - 1, 0],
+                rp[i - 1, 1],
+                r[i, 0],
+                r[i, 1],
+            )
+            p = inverse(q[0], q[1], q[2], q[3])
+        dinv[i, 0, 0], dinv[i, 0, 1], dinv[i, 1, 0], dinv[i, 1, 1] = p
+        rp[i, 0] = y0
+        rp[i, 1] = y1
+        # upwards, row n - 1 - s from row n - s
+        i = n - 1 - s
+        if i > k:
+            if s == 0:
+                p = inverse(di[i, 0, 0], di[i, 0, 1], di[i, 1, 0], di[i, 1, 1])
+                y0 = r[i, 0]
+                y1 = r[i, 1]
+            else:
+                q, y0, y1 = eliminate(
+                    (di[i, 0, 0], di[i, 0, 1], di[i, 1, 0], di[i, 1, 1]),
+                    (up[i, 0, 0], up[i, 0, 1], up[i, 1, 0], up[i, 1, 1]),
+                    (lo[i + 1, 0, 0], lo[i + 1, 0, 1], lo[i + 1, 1, 0], lo[i + 1, 1, 1]),
+                    (dinv[i + 1, 0, 0], dinv[i + 1, 0, 1], dinv[i + 1, 1, 0], dinv[i + 1, 1, 1]),
+                    rp[i + 1, 0],
+                    rp[i + 1, 1],
+                    r[i, 0],
+                    r[i, 1],
+                )
+                p = inverse(q[0], q[1], q[2], q[3])
+            dinv[i, 0, 0], dinv[i, 0, 1], dinv[i, 1, 0], dinv[i, 1, 1] = p
+            rp[i, 0] = y0
+            rp[i, 1] = y1
+    # the middle row, from both sides
+    a = di[k, 0, 0]
+    b = di[k, 0, 1]
+    c = di[k, 1, 0]
+    d = di[k, 1, 1]
+    y0 = r[k, 0]
+    y1 = r[k, 1]
+    if k > 0:
+        (a, b, c, d), y0, y1 = eliminate(
+            (a, b, c, d),
+            (lo[k, 0, 0], lo[k, 0, 1], lo[k, 1, 0], lo[k, 1, 1]),
+            (up[k - 1, 0, 0], up[k - 1, 0, 1], up[k - 1, 1, 0], up[k - 1, 1, 1]),
+            (dinv[k - 1, 0, 0], dinv[k - 1, 0, 1], dinv[k - 1, 1, 0], dinv[k - 1, 1, 1]),
+            rp[k - 1, 0],
+            rp[k - 1, 1],
+            y0,
+            y1,
+        )
+    if k < n - 1:
+        (a, b, c, d), y0, y1 = eliminate(
+            (a, b, c, d),
+            (up[k, 0, 0], up[k, 0, 1], up[k, 1, 0], up[k, 1, 1]),
+            (lo[k + 1, 0, 0], lo[k + 1, 0, 1], lo[k + 1, 1, 0], lo[k + 1, 1, 1]),
+            (dinv[k + 1, 0, 0], dinv[k + 1, 0, 1], dinv[k + 1, 1, 0], dinv[k + 1, 1, 1]),
+            rp[k + 1, 0],
+            rp[k + 1, 1],
+            y0,
+            y1,
+        )
+    a, b, c, d = inverse(a, b, c, d)
+    x[k, 0] = a * y0 + b * y1
+    x[k, 1] = c * y0 + d * y1
+    # back substitution outwards from the middle row, both directions at once
+    for s in range(1, max(k, n - 1 - k) + 1):
+        i = k - s
+        if i >= 0:
+            r0 = rp[i, 0] - (up[i, 0, 0] * x[i + 1, 0] + up[i, 0, 1] * x[i + 1, 1])
+            r1 = rp[i, 1] - (up[i, 1, 0] * x[i + 1, 0] + up[i, 1, 1] * x[i + 1, 1])
+            x[i, 0] = dinv[i, 0, 0] * r0 + dinv[i, 0, 1] * r1
+            x[i, 1] = dinv[i, 1, 0] * r0 + dinv[i, 1, 1] * r1
+        i = k + s
+        if i < n:
+            r0 = rp[i, 0] - (lo[i, 0, 0] * x[i - 1, 0] + lo[i, 0, 1] * x[i - 1, 1])
+            r1 = rp[i, 1] - (lo[i, 1, 0] * x[i - 1, 0] + lo[i, 1, 1] * x[i - 1, 1])
+            x[i, 0] = dinv[i, 0, 0] * r0 + dinv[i, 0, 1] * r1
+            x[i, 1] = dinv[i, 1, 0] * r0 + dinv[i, 1, 1] * r1
 
 
 @kernel
@@ -353,9 +551,12 @@ def run_ham(
     up = np.zeros((n, 2, 2))
     res = np.zeros((n, 2))
     x = np.zeros((n, 2))
-    dp = np.zeros((n, 2, 2))
+    dinv = np.zeros((n, 2, 2))
     rp = np.zeros((n, 2))
-    props = np.empty((n, 13))
+    props = np.empty((n, 16))
+    inv_dist = np.zeros(n)  # 1 / the distance between the centres of cells f - 1 and f
+    for f in range(1, n):
+        inv_dist[f] = 1.0 / (HALF * (dx[f - 1] + dx[f]))
     cum_bc = np.zeros(bc.shape)
     for side in range(2):
         for kb in range(1, tb.shape[0]):
@@ -363,9 +564,7 @@ def run_ham(
                 cum_bc[side, kb, c] = cum_bc[side, kb - 1, c] + 0.5 * (tb[kb] - tb[kb - 1]) * (
                     bc[side, kb - 1, c] + bc[side, kb, c]
                 )
-    jac = np.empty((2, 4))
-    b_l = np.empty(NB_COLS)
-    b_r = np.empty(NB_COLS)
+    b_now = np.empty((2, NB_COLS))  # the boundary data averaged over the step, per face
     cum = np.zeros((2, 5))
     time = 0.0
     k = 0
@@ -381,8 +580,7 @@ def run_ham(
         step = min(dt, t_out[k] - time)
         last = step >= t_out[k] - time
         tnew = time + step
-        bc_mean(bc, cum_bc, tb, 0, time, tnew, b_l)
-        bc_mean(bc, cum_bc, tb, 1, time, tnew, b_r)
+        bc_mean(bc, cum_bc, tb, time, tnew, b_now)
         # initial guess: the last step's rate of change carried on over at most twice its length (the last
         # state after a rejection)
         ratio = min(step / prev_step, 2.0) if prev_step > 0.0 else 0.0
@@ -391,15 +589,49 @@ def run_ham(
             un[i] = uc[i] + ratio * rate_u[i]
         converged = False
         it = 0
+        inv_step = 1.0 / step
         while it < max_iter:
             it += 1
             for i in range(n):
-                pr = props[i]
-                cell_props(tn[i], un[i], mat[i], tw, tk, td, thermal, pr)
-                w = pr[0]
-                dw = pr[1]
-                rc = thermal[mat[i], 2] + C_WATER * w
-                c = dx[i] / step
+                m = mat[i]
+                ks, fr = segment(un[i])
+                p = cell_props(
+                    tn[i],
+                    un[i],
+                    HALF * dx[i],
+                    thermal[m, 0],
+                    thermal[m, 1],
+                    thermal[m, 3],
+                    tw[m, ks],
+                    tw[m, ks + 1],
+                    td[m, ks],
+                    td[m, ks + 1],
+                    tk[m, ks],
+                    tk[m, ks + 1],
+                    fr,
+                )
+                (
+                    props[i, 0],
+                    props[i, 1],
+                    props[i, 2],
+                    props[i, 3],
+                    props[i, 4],
+                    props[i, 5],
+                    props[i, 6],
+                    props[i, 7],
+                    props[i, 8],
+                    props[i, 9],
+                    props[i, 10],
+                    props[i, 11],
+                    props[i, 12],
+                    props[i, 13],
+                    props[i, 14],
+                    props[i, 15],
+                ) = p
+                w = p[0]
+                dw = p[1]
+                rc = thermal[m, 2] + C_WATER * w
+                c = dx[i] * inv_step
                 res[i, 0] = c * (w - w_old[i])
                 res[i, 1] = c * (rc * tn[i] - e_old[i])
                 for r in range(2):
@@ -415,23 +647,31 @@ def run_ham(
                 i = f - 1
                 j = f
                 if mat[i] == mat[j]:
-                    dist = HALF * (dx[i] + dx[j])
-                    gl = (props[j, 10] - props[i, 10]) / dist
-                    gl_ui = -props[i, 11] / dist
-                    gl_uj = props[j, 11] / dist
+                    gl = (props[j, 14] - props[i, 14]) * inv_dist[f]
+                    gl_ui = -props[i, 15] * inv_dist[f]
+                    gl_uj = props[j, 15] * inv_dist[f]
                 else:
-                    gl = liquid_interface(un[i], mat[i], dx[i], un[j], mat[j], dx[j], tk)
-                    gl_ui = (liquid_interface(un[i] + hu, mat[i], dx[i], un[j], mat[j], dx[j], tk) - gl) / hu
-                    gl_uj = (liquid_interface(un[i], mat[i], dx[i], un[j] + hu, mat[j], dx[j], tk) - gl) / hu
-                g0, q0 = face_flux(tn[i], props[i], dx[i], tn[j], props[j], dx[j], jac, gl, gl_ui, gl_uj)
-                a00 = jac[0, 0]
-                a01 = jac[0, 1]
-                a10 = jac[1, 0]
-                a11 = jac[1, 1]
-                b00 = jac[0, 2]
-                b01 = jac[0, 3]
-                b10 = jac[1, 2]
-                b11 = jac[1, 3]
+                    # the flux, then with ui and with uj perturbed (one call site: numba inlines each)
+                    gl = 0.0
+                    gl_ui = 0.0
+                    gl_uj = 0.0
+                    for pert in range(3):
+                        ui = un[i] + hu if pert == 1 else un[i]
+                        uj = un[j] + hu if pert == 2 else un[j]
+                        v = liquid_interface(ui, mat[i], dx[i], uj, mat[j], dx[j], tk)
+                        if pert == 0:
+                            gl = v
+                        elif pert == 1:
+                            gl_ui = (v - gl) / hu
+                        else:
+                            gl_uj = (v - gl) / hu
+                g0, q0, a00, a01, b00, b01, a10, a11, b10, b11 = face_flux(
+                    tn[i], props[i, 2], props[i, 3], props[i, 4], props[i, 5], props[i, 7], props[i, 8],
+                    props[i, 9], props[i, 10], props[i, 11], props[i, 12], props[i, 13],
+                    tn[j], props[j, 2], props[j, 3], props[j, 4], props[j, 5], props[j, 7], props[j, 8],
+                    props[j, 9], props[j, 10], props[j, 11], props[j, 12], props[j, 13],
+                    gl, gl_ui, gl_uj,
+                )  # fmt: skip
                 res[i, 0] += g0
                 res[i, 1] += q0
                 res[j, 0] -= g0
@@ -455,21 +695,27 @@ def run_ham(
             # boundaries: the residual loses what flows in
             for side in range(2):
                 i = 0 if side == 0 else n - 1
-                b = b_l if side == 0 else b_r
-                g0, q0, _ = boundary_flux(kind[side], b, tn[i], un[i], mat[i], dx[i], tw, tk, td, thermal)
-                g1, q1, _ = boundary_flux(kind[side], b, tn[i] + ht, un[i], mat[i], dx[i], tw, tk, td, thermal)
-                g2, q2, _ = boundary_flux(kind[side], b, tn[i], un[i] + hu, mat[i], dx[i], tw, tk, td, thermal)
-                res[i, 0] -= g0
-                res[i, 1] -= q0
-                di[i, 0, 0] -= (g1 - g0) / ht
-                di[i, 0, 1] -= (g2 - g0) / hu
-                di[i, 1, 0] -= (q1 - q0) / ht
-                di[i, 1, 1] -= (q2 - q0) / hu
+                g0 = 0.0
+                q0 = 0.0
+                for pert in range(3):  # the flux, then with T and with u perturbed (one call site)
+                    ti = tn[i] + ht if pert == 1 else tn[i]
+                    ui = un[i] + hu if pert == 2 else un[i]
+                    g, q, _ = boundary_flux(kind[side], b_now, side, ti, ui, mat[i], dx[i], tw, tk, td, thermal)
+                    if pert == 0:
+                        g0 = g
+                        q0 = q
+                        res[i, 0] -= g
+                        res[i, 1] -= q
+                    elif pert == 1:
+                        di[i, 0, 0] -= (g - g0) / ht
+                        di[i, 1, 0] -= (q - q0) / ht
+                    else:
+                        di[i, 0, 1] -= (g - g0) / hu
+                        di[i, 1, 1] -= (q - q0) / hu
             for i in range(n):
                 res[i, 0] = -res[i, 0]
                 res[i, 1] = -res[i, 1]
-            if not solve_block(lo, di, up, res, n, x, dp, rp):
-                break
+            solve_block(lo, di, up, res, n, x, dinv, rp)
             big_t = 0.0
             big_u = 0.0
             finite = True
@@ -505,8 +751,7 @@ def run_ham(
         # accept: integrate the boundary fluxes at the new state
         for side in range(2):
             i = 0 if side == 0 else n - 1
-            b = b_l if side == 0 else b_r
-            g0, q0, ro = boundary_flux(kind[side], b, tn[i], un[i], mat[i], dx[i], tw, tk, td, thermal)
+            g0, q0, ro = boundary_flux(kind[side], b_now, side, tn[i], un[i], mat[i], dx[i], tw, tk, td, thermal)
             cum[side, 0] += g0 * step
             cum[side, 1] += q0 * step
             cum[side, 2] += ro * step
@@ -517,7 +762,10 @@ def run_ham(
         big_w = 0.0
         for i in range(n):
             big_t = max(big_t, abs(tn[i] - tc[i]))
-            big_u = max(big_u, abs(un[i] - uc[i]))
+            # the change of ln pc, or near saturation (RH above about 0.95) the change of RH / DPHI_STEP
+            # if smaller: there ln pc swings by whole units for RH changes of 1e-6 (condensation on a
+            # vapour-tight layer), which held the steps to seconds for no accuracy
+            big_u = max(big_u, min(abs(un[i] - uc[i]), abs(kelvin(un[i])[0] - kelvin(uc[i])[0]) / DPHI_STEP))
             rate_t[i] = tn[i] - tc[i]
             rate_u[i] = un[i] - uc[i]
             tc[i] = tn[i]
@@ -536,7 +784,7 @@ def run_ham(
             flux_out[k, :, :] = cum
             k += 1
         # next step: by the change of this one (targets 2 K, 2 % of the capillary saturation's water content
-        # and 1 in ln pc) and the Newton effort
+        # and 1 in ln pc, or DPHI_STEP in RH where that is less) and the Newton effort
         grow = 2.0
         if big_t > 0.0:
             grow = min(grow, 2.0 / big_t)

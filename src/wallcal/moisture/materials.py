@@ -219,8 +219,13 @@ class HygricMaterial:
 
     # Python-side evaluation (the kernel has its own copies)
     def water_content(self, u):
-        """``w`` [kg/m3] at the potential ``u = ln(pc)`` (table interpolation, as in the kernel)."""
-        return np.interp(u, U_GRID, self.w)
+        """``w`` [kg/m3] at the potential ``u = ln(pc)`` (table interpolation, as in the kernel: beyond the
+        table the end segments extended, e.g. a condensing cell's ``pc`` below 1 Pa)."""
+        u = np.asarray(u, dtype=float)
+        w = np.interp(u, U_GRID, self.w)
+        lo = (self.w[1] - self.w[0]) / DU
+        hi = (self.w[-1] - self.w[-2]) / DU
+        return w + np.minimum(u - U_MIN, 0.0) * lo + np.maximum(u - U_MAX, 0.0) * hi
 
     def water_content_from_rh(self, phi):
         """``w`` [kg/m3] at relative humidity ``phi`` (fraction)."""
