@@ -255,3 +255,18 @@ def test_response_time_is_a_first_order_lag(trh):
     with pytest.raises(StudyError, match="a response time is >= 0 s"):
         parse_study(bad, base_dir=TRH.parent)
     assert "response_time[interface]" in [e.name for e in propose(trh, trh.calibration)]
+
+
+def test_simulate_scores_the_held_out_window(trh, tmp_path, capsys):
+    """``wallcal simulate`` of a study with a window: the window is left out of metrics.csv and scored on its own
+    in validation.csv (the same figures as :func:`score_wall`), and the table is printed."""
+    from wallcal.cli import main
+
+    out = tmp_path / "sim"
+    assert main(["simulate", str(TRH), "--out", str(out)]) == 0
+    assert "Held-out window" in capsys.readouterr().out
+    got = pd.read_csv(out / "validation.csv")
+    assert list(got.columns) == list(VALIDATION_COLUMNS)
+    want = score_wall(trh)
+    np.testing.assert_allclose(got["rmse"], want["rmse"], rtol=1e-5)
+    assert (got["n"] == want["n"]).all() and (got["n"] > 2000).all()

@@ -432,6 +432,8 @@ class SimulationResult:
     spikes: pd.DataFrame | None = None
     bridged_gaps: pd.DataFrame | None = None
     profiles: pd.DataFrame | None = None
+    #: the held-out window's ``validation.csv`` table (:func:`wallcal.validation.score_wall`), when scored
+    validation: pd.DataFrame | None = None
 
     def write(self, out_dir: str | Path) -> Path:
         """Write ``simulated.csv``, ``metrics.csv``, ``summary.csv``, ``measured.csv`` and
@@ -455,6 +457,10 @@ class SimulationResult:
             self.spikes.to_csv(d / "spikes.csv", index=False)
         if self.profiles is not None:
             self.profiles.to_csv(d / "profiles.csv", index=False, float_format="%.6g")
+        if self.validation is not None:
+            from .validation import write as write_validation
+
+            write_validation(self.validation, d)
         (d / "info.json").write_text(json.dumps(self.info, indent=2, default=str))
 
 

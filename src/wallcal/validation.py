@@ -33,15 +33,16 @@ def validation_study(study: Study) -> Study | None:
     )
 
 
-def prepare_window(study: Study, batches: bool = True):
-    """The validation window's data prepared for the engine (for batches by default); None without a window."""
+def prepare_window(study: Study, batches: bool = True, **settings):
+    """The validation window's data prepared for the engine (for batches by default); None without a window.
+    ``settings``: ``engine``, ``time_step``, ``grid_constant``, ``node_rule`` instead of the study's."""
     from .simulation import BATCH_NEEDS, prepare
 
     vs = validation_study(study)
     if vs is None:
         return None
     try:
-        return prepare(vs, needs=BATCH_NEEDS if batches else (), purpose="the held-out validation")
+        return prepare(vs, needs=BATCH_NEEDS if batches else (), purpose="the held-out validation", **settings)
     except DataError as exc:
         raise DataError(
             f"period.validation_start/validation_end ({study.period.validation_start} .. "
@@ -50,15 +51,20 @@ def prepare_window(study: Study, batches: bool = True):
 
 
 def score_wall(
-    study: Study, wall=None, offsets: dict[str, float] | None = None, response_times: dict[str, float] | None = None
+    study: Study,
+    wall=None,
+    offsets: dict[str, float] | None = None,
+    response_times: dict[str, float] | None = None,
+    **settings,
 ) -> pd.DataFrame | None:
     """Every sensor's RMSE and MBE over the validation window with ``wall`` (default the study's).
 
     ``offsets``: sensor -> correction [degC or W/m2] added to its measured signal (calibrated ``offset``
     parameters); ``response_times``: probe -> first-order response time [s] of its reading (calibrated
-    ``response_time`` parameters). None when the study has no validation window.
+    ``response_time`` parameters); ``settings``: ``engine``, ``time_step``, ``grid_constant``, ``node_rule``
+    instead of the study's. None when the study has no validation window.
     """
-    prep = prepare_window(study, batches=False)
+    prep = prepare_window(study, batches=False, **settings)
     if prep is None:
         return None
     from .simulation import simulate

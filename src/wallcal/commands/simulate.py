@@ -62,7 +62,21 @@ def run(args) -> int:
         )
     if res.info.get("bridged_gaps"):
         print(f"{res.info['bridged_gaps']} gap(s) in boundary series bridged by linear interpolation.")
+    p = study.period
+    if p.validation is not None:  # the held-out window: left out of the table above, scored on its own
+        from ..validation import score_wall
+
+        settings = {"time_step": args.time_step, "grid_constant": args.grid_constant, "node_rule": args.node_rule}
+        res.validation = score_wall(study, engine=res.engine, **settings)
+        print()
+        print(
+            table(
+                res.validation.set_index("sensor"),
+                f"Held-out window {p.validation_start} .. {p.validation_end} (not in the metrics above)",
+            )
+        )
     if args.out:
         res.write(args.out)
-        print(f"\nwrote {args.out}/simulated.csv, metrics.csv, summary.csv")
+        extra = ", validation.csv" if res.validation is not None else ""
+        print(f"\nwrote {args.out}/simulated.csv, metrics.csv, summary.csv{extra}")
     return 0
