@@ -36,10 +36,13 @@ from numba import njit
 from ..jit import FLAGS, inner, kernel
 from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_GRID, U_MAX, U_MIN
 
-#: the decorator of the functions the Newton loop calls: inlined into it by numba. As calls, each array
-#: argument or view cost two atomic reference count operations (most of the run time before), and LLVM
-#: left the table lookups as calls; each inlined call site costs compile time (one call site each here).
-hot = njit(**FLAGS, inline="always", no_cpython_wrapper=True)
+#: the decorator of the functions the Newton loop calls (scalar arguments: as calls with array arguments or
+#: views, each cost two atomic reference count operations, most of the run time before). ``inlined`` for the
+#: two largest, the cell properties and the face flux: inlined into the loop by numba, they take the study
+#: wall's year from 0.255 to 0.237 s CPU at no compile cost; inlining every function (0.226 s) took the first
+#: compile from 11.8 to 19.6 s CPU (bench/ham.py; docs/moisture.md, "Speed")
+hot = njit(**FLAGS, no_cpython_wrapper=True)
+inlined = njit(**FLAGS, inline="always", no_cpython_wrapper=True)
 
 H_V0 = 2.501e6  # J/kg, latent heat at 0 degC
 C_VAP = 1870.0  # J/(kg K)
@@ -193,7 +196,7 @@ def node_props(t, u, m, tw, td, thermal):
     return w, lam, d, vapour_pressure(t, u)
 
 
-@hot
+@inlined
 def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, f):
     """A cell's properties and their derivatives from its table segment's end values (``*_a``, ``*_b``,
     fraction ``f``) and its half width ``half`` [m]: ``(w, dw/du, dlambda/du, dlambda/dT, half/lambda,
@@ -236,7 +239,7 @@ def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, 
     )
 
 
-@hot
+@inlined
 def face_flux(
     ti, lam_ui, lam_ti, rl_i, gl_i, d_ti, d_ui, rd_i, gd_i, pv_i, pv_ti, pv_ui,
     tj, lam_uj, lam_tj, rl_j, gl_j, d_tj, d_uj, rd_j, gd_j, pv_j, pv_tj, pv_uj,
