@@ -4,8 +4,8 @@ Unknowns per cell: temperature ``T`` [degC] and the moisture potential ``u = ln(
 :mod:`wallcal.moisture.materials`). Backward Euler in time; each step is solved by Newton's method on the
 block-tridiagonal system (2x2 blocks). The Jacobian is analytic: each cell's properties and their
 derivatives once per iteration (:func:`cell_props`), the face fluxes by the chain rule
-(:func:`face_flux`); only the liquid flux across an interface between two materials and the two
-boundary faces are differentiated by one-sided differences.
+(:func:`face_flux`; :func:`contact_flux` at a contact between two materials); only the two boundary faces
+are differentiated by one-sided differences.
 
 Balances per cell (per m2 of wall, ``dx`` the cell width)::
 
