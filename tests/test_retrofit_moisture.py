@@ -276,12 +276,14 @@ def test_classic_case_verdicts_agree_with_their_columns(classic):
 
 @pytest.mark.slow
 def test_classic_case_interior_wool_without_vapour_control_is_a_risk(classic):
-    """Interior vapour condenses on the old plaster behind the wool in winter (RH 1.0 there for months)."""
+    """Interior vapour condenses on the old plaster behind the wool in winter, and the plaster sucks it in: RH
+    0.965 at most in the cells either side of the contact (1.0 for months while the kernel let no condensate
+    cross the contact), mould index 4.1."""
     tab, _ = classic
     row = tab.loc["wool 80 + board"]
     assert row["moisture_verdict"] in ("mould_risk", "accumulating")
     assert row["critical_interface"] == "plaster|int1"
-    assert float(row["max_relative_humidity_critical"]) > 0.99 and float(row["mould_index_max"]) >= 1.0
+    assert float(row["max_relative_humidity_critical"]) > 0.95 and float(row["mould_index_max"]) >= 1.0
 
 
 @pytest.mark.slow
