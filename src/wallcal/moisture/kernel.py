@@ -281,20 +281,20 @@ def face_flux(
 @inner()
 def contact_partials(
     tf_x, bi_x, bj_x, pvi_x, pvj_x, phi_x, phj_x, q_x,
-    bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj,
+    bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
 ):  # fmt: skip
     """The derivatives of a contact's ``G`` and ``Q`` (:func:`contact_flux`) in one of the two cells' states
     ``x``, from the derivatives in ``x`` at a fixed contact suction: of ``T_f``, of the two vapour
     conductances ``b``, of the two cells' ``p_v`` and ``Phi`` and of the conduction; ``dpi = p_v,i - p_v,f``,
-    ``dpj = p_v,f - p_v,j``; ``G = wi G_i + wj G_j``, ``g_uf`` its derivative in ``u_f``. The contact state
-    follows by the implicit function theorem."""
+    ``dpj = p_v,f - p_v,j``; ``G = wi G_i + wj G_j``, ``g_uf`` its derivative in ``u_f``, the vapour part
+    of the enthalpy ``vi g_v,i + vj g_v,j``. The contact state follows by the implicit function theorem."""
     pvf_x = pvf_t * tf_x
     gvi = bi_x * dpi + bi * (pvi_x - pvf_x)
     gvj = bj_x * dpj + bj * (pvf_x - pvj_x)
     f_x = gvi - ci * phi_x - gvj - cj * phj_x
     uf_x = -f_x / fu if fu > 0.0 else 0.0
     g_x = wi * (gvi - ci * phi_x) + wj * (gvj + cj * phj_x) + g_uf * uf_x
-    gvm_x = HALF * (gvi + gvj + (bj - bi) * pvf_u * uf_x)
+    gvm_x = vi * gvi + vj * gvj + (vj * bj - vi * bi) * pvf_u * uf_x
     q = q_x + gvm_x * (hv - hl) + g_x * hl + (gvm * (C_VAP - C_WATER) + g * C_WATER) * tf_x
     return g_x, q
 
@@ -317,7 +317,8 @@ def contact_flux(
     (bisection when a step leaves it) from ``uf`` (the last value; nan for none). A vapour-tight half cell
     (``rd`` 0) carries no vapour. The energy flux is conduction plus the mean of the enthalpy the two sides
     carry (vapour ``h_v``, liquid ``c_w T_f``), so the latent heat of what condenses or evaporates at the
-    contact goes half to each cell and the energy balance stays conservative."""
+    contact goes half to each cell and the energy balance stays conservative (at an end of the table, the
+    enthalpy on the side the flux was taken from)."""
     # conduction and the contact temperature
     inv_rh = 1.0 / (rl_i + rl_j)
     q = (ti - tj) * inv_rh
@@ -412,6 +413,8 @@ def contact_flux(
         wi = 0.0
         wj = 1.0
         g_uf = gj_uf
+    vi = HALF
+    vj = HALF
     if end:
         fu = 0.0
         wi = 0.0
@@ -421,10 +424,13 @@ def contact_flux(
                 wi = 1.0
             else:
                 wj = 1.0
+        # the enthalpy of the flux as it is on the side it was taken from (none when it is 0)
+        vi = wi
+        vj = wj
     elif fu > 0.0:
         corr = -f / fu
     g = wi * gi + wj * gj + g_uf * corr
-    gvm = HALF * (bi * dpi + bj * dpj + (bj - bi) * pvf_u * corr)
+    gvm = vi * (bi * dpi - bi * pvf_u * corr) + vj * (bj * dpj + bj * pvf_u * corr)
     hv = H_V0 + C_VAP * tf
     hl = C_WATER * tf
     qt = q + gvm * (hv - hl) + g * hl
@@ -435,19 +441,19 @@ def contact_flux(
     tf_uj = -q_uj * rl_i
     g_ti, q_ti = contact_partials(
         tf_ti, bi_ti, 0.0, pv_ti, 0.0, 0.0, 0.0, q_ti,
-        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
     )  # fmt: skip
     g_ui, q_ui = contact_partials(
         tf_ui, bi_ui, 0.0, pv_ui, 0.0, ph_ui, 0.0, q_ui,
-        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
     )  # fmt: skip
     g_tj, q_tj = contact_partials(
         tf_tj, 0.0, bj_tj, 0.0, pv_tj, 0.0, 0.0, q_tj,
-        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
     )  # fmt: skip
     g_uj, q_uj = contact_partials(
         tf_uj, 0.0, bj_uj, 0.0, pv_uj, 0.0, ph_uj, q_uj,
-        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
     )  # fmt: skip
     return g, qt, g_ti, g_ui, g_tj, g_uj, q_ti, q_ui, q_tj, q_uj, uf
 
