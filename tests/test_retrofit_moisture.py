@@ -276,7 +276,7 @@ def test_classic_case_verdicts_agree_with_their_columns(classic):
 
 @pytest.mark.slow
 def test_classic_case_interior_wool_without_vapour_control_is_a_risk(classic):
-    """Interior vapour condenses on the old plaster behind the wool in winter, and the plaster sucks it in: RH
+    """Interior vapour wets the old plaster behind the wool in winter, and the plaster sucks it in: RH
     0.965 at most in the cells either side of the contact (1.0 for months while the kernel let no condensate
     cross the contact), mould index 4.1."""
     tab, _ = classic
