@@ -5,10 +5,11 @@ calcium silicate board inside, 100 mm EPS outside). Runs `wallcal retrofit` and 
 variants.csv.
 
 Usage: python bench/retrofit_classic.py [--interior-climate "constant" | "EN 15026 normal" | "EN 15026 high"]
+[--set 'KEY = VALUE' ...]
 
-The option replaces the example's ``moisture_interior_climate`` (EN 15026 normal: about 15 s in all; "constant",
-20 degC and RH 0.5 all year: about two minutes, the vapour control layer variant's summer condensation alone
-about 100 s).
+``--interior-climate`` replaces the example's ``moisture_interior_climate``; ``--set`` adds (or replaces) a line
+of the ``[retrofit]`` table, e.g. ``--set 'mould_sensitivity = { plaster = "sensitive" }'`` or ``--set
+'driving_rain_factor = 2.0'`` (the sensitivity columns of docs/retrofit.md). About 20 s each.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--interior-climate", help="replaces the example's [retrofit] moisture_interior_climate")
+    ap.add_argument("--set", action="append", default=[], metavar="'KEY = VALUE'", help="a [retrofit] line")
     args = ap.parse_args()
     text = EXAMPLE.read_text()
     head, _, rest = text.partition("\n[retrofit]\n")
@@ -49,6 +51,9 @@ def main() -> None:
     if args.interior_climate is not None:
         settings = re.sub(r"(?m)^moisture_interior_climate = .*$", "", settings)
         settings += f"moisture_interior_climate = {args.interior_climate!r}\n".replace("'", '"')
+    for line in args.set:
+        key = line.partition("=")[0].strip()
+        settings = re.sub(rf"(?m)^{re.escape(key)} = .*$", "", settings) + line + "\n"
     head = head.replace('file = "measured.csv"', f'file = "{(EXAMPLE.parent / "measured.csv").as_posix()}"')
     head = head.replace('reference_wall = "true_wall.toml"', "")
     with tempfile.TemporaryDirectory() as tmp:

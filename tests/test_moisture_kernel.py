@@ -95,9 +95,10 @@ def test_condensation_on_a_vapour_control_layer_takes_few_steps_and_keeps_the_ac
     """Warm humid room, plasterboard, mineral wool, a vapour control layer on the cold side: the wool's cell
     against the film condenses (RH 1). The step control took the change of ln(pc) there, which swings by
     whole units for RH changes of 1e-6: 71 393 steps for these 72 hours (a retrofit year with a vapour
-    control layer took 1.6 million); near saturation it now takes the change of RH: 289 steps. Against
-    steps of at most 10 s both the old and the new control are off by 0.0071 RH, 0.38 K and 0.061 kg/m3
-    at worst (the first hours' transient from the uniform initial state, on steps of up to an hour). The
+    control layer took 1.6 million); near saturation it now takes the change of RH: about 290 steps. Against
+    steps of at most 10 s it is off by 0.0077 RH, 0.38 K and 0.099 kg/m3 at worst (0.14 % of the condensing
+    cell's 70 kg/m3; the first hours' transient from the uniform initial state, on steps of up to an hour;
+    0.0071 RH and 0.061 kg/m3 before the contact between the film and the wool had one state). The
     condensing cell's suction falls below the tables' 1 Pa: its reported water content is the kernel's (the
     table's end segment extended), so the mass balance closes (it was 0.3 off with the table's end value)."""
     layers = [
@@ -116,5 +117,5 @@ def test_condensation_on_a_vapour_control_layer_takes_few_steps_and_keeps_the_ac
     assert res.stats["steps"] < 10 * hours
     assert np.abs(res.relative_humidity - ref.relative_humidity).max() < 0.008
     assert np.abs(res.temperature - ref.temperature).max() < 0.4
-    assert np.abs(res.water_content - ref.water_content).max() < 0.07  # kg/m3 (the wet wool cell: 50)
+    assert np.abs(res.water_content - ref.water_content).max() < 0.11  # kg/m3 (the wet wool cell: 70)
     assert res.mass_balance_error.max() < 1e-9

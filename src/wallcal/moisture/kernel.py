@@ -4,8 +4,8 @@ Unknowns per cell: temperature ``T`` [degC] and the moisture potential ``u = ln(
 :mod:`wallcal.moisture.materials`). Backward Euler in time; each step is solved by Newton's method on the
 block-tridiagonal system (2x2 blocks). The Jacobian is analytic: each cell's properties and their
 derivatives once per iteration (:func:`cell_props`), the face fluxes by the chain rule
-(:func:`face_flux`); only the liquid flux across an interface between two materials and the two
-boundary faces are differentiated by one-sided differences.
+(:func:`face_flux`; :func:`contact_flux` at a contact between two materials); only the two boundary faces
+are differentiated by one-sided differences.
 
 Balances per cell (per m2 of wall, ``dx`` the cell width)::
 
@@ -295,24 +295,183 @@ def face_flux(
 
 
 @inner()
-def liquid_interface(ui, mi, dxi, uj, mj, dxj, tk):
-    """Liquid flux from cell i (material mi) to cell j (material mj): each half cell's secant conductance
-    ``dPhi/dpc`` between the two suctions, in series."""
-    pci = math.exp(ui)
-    pcj = math.exp(uj)
-    ai, si = interp(tk, mi, ui)
-    bj, sj = interp(tk, mj, uj)
-    if abs(uj - ui) > 1e-6:
-        aj, _ = interp(tk, mi, uj)
-        bi, _ = interp(tk, mj, ui)
-        ka = (aj - ai) / (pcj - pci)
-        kb = (bj - bi) / (pcj - pci)
-    else:
-        ka = si / pci
-        kb = sj / pcj
-    if ka > 0.0 and kb > 0.0:
-        return (pcj - pci) / (HALF * dxi / ka + HALF * dxj / kb)
-    return 0.0
+def contact_partials(
+    tf_x, bi_x, bj_x, pvi_x, pvj_x, phi_x, phj_x, q_x,
+    bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
+):  # fmt: skip
+    """The derivatives of a contact's ``G`` and ``Q`` (:func:`contact_flux`) in one of the two cells' states
+    ``x``, from the derivatives in ``x`` at a fixed contact suction: of ``T_f``, of the two vapour
+    conductances ``b``, of the two cells' ``p_v`` and ``Phi`` and of the conduction; ``dpi = p_v,i - p_v,f``,
+    ``dpj = p_v,f - p_v,j``; ``G = wi G_i + wj G_j``, ``g_uf`` its derivative in ``u_f``, the vapour part
+    of the enthalpy ``vi g_v,i + vj g_v,j``. The contact state follows by the implicit function theorem."""
+    pvf_x = pvf_t * tf_x
+    gvi = bi_x * dpi + bi * (pvi_x - pvf_x)
+    gvj = bj_x * dpj + bj * (pvf_x - pvj_x)
+    f_x = gvi - ci * phi_x - gvj - cj * phj_x
+    uf_x = -f_x / fu if fu > 0.0 else 0.0
+    g_x = wi * (gvi - ci * phi_x) + wj * (gvj + cj * phj_x) + g_uf * uf_x
+    gvm_x = vi * gvi + vj * gvj + (vj * bj - vi * bi) * pvf_u * uf_x
+    q = q_x + gvm_x * (hv - hl) + g_x * hl + (gvm * (C_VAP - C_WATER) + g * C_WATER) * tf_x
+    return g_x, q
+
+
+@inner()
+def contact_flux(
+    ti, ui, lam_ui, lam_ti, rl_i, gl_i, d_ti, d_ui, rd_i, gd_i, pv_i, pv_ti, pv_ui, ph_i, ph_ui, a_i, mi,
+    tj, uj, lam_uj, lam_tj, rl_j, gl_j, d_tj, d_uj, rd_j, gd_j, pv_j, pv_tj, pv_uj, ph_j, ph_uj, a_j, mj,
+    tk, uf,
+):  # fmt: skip
+    """Flux ``(G, Q)`` from cell i to cell j through a contact between two materials, its derivatives in ``Ti,
+    ui, Tj, uj`` (as :func:`face_flux`), and the contact's suction ``u_f``.
+
+    The contact has one state: its temperature ``T_f`` from the two half cells' thermal resistances in series,
+    and its suction ``u_f`` from the continuity of the total moisture flux, ``G_i(u_f) = G_j(u_f)`` with
+    ``G_i = (p_v,i - p_v(T_f, u_f)) / rd_i + (Phi_i(u_f) - Phi_i(u_i)) / a_i`` (vapour and liquid through the
+    half cell of width ``a_i``, ``Phi_i`` the Kirchhoff potential of material i) and
+    ``G_j = (p_v(T_f, u_f) - p_v,j) / rd_j + (Phi_j(u_j) - Phi_j(u_f)) / a_j``: vapour on one side may go on as
+    liquid on the other. ``G_i - G_j`` rises with ``u_f``; it is solved by Newton's method inside a bracket
+    (bisection when a step leaves it) from ``uf`` (the last value; nan for none). A vapour-tight half cell
+    (``rd`` 0) carries no vapour. The energy flux is conduction plus the mean of the enthalpy the two sides
+    carry (vapour ``h_v``, liquid ``c_w T_f``), so the latent heat of what condenses or evaporates at the
+    contact goes half to each cell and the energy balance stays conservative (at an end of the table, the
+    enthalpy on the side the flux was taken from)."""
+    # conduction and the contact temperature
+    inv_rh = 1.0 / (rl_i + rl_j)
+    q = (ti - tj) * inv_rh
+    qr = q * inv_rh
+    q_ti = inv_rh + qr * gl_i * lam_ti
+    q_tj = -inv_rh + qr * gl_j * lam_tj
+    q_ui = qr * gl_i * lam_ui
+    q_uj = qr * gl_j * lam_uj
+    tf = ti - q * rl_i
+    ps, ps_t = psat_slope(tf)
+    # vapour conductances 1 / rd and liquid ones 1 / a
+    bi = 0.0
+    bi_ti = 0.0
+    bi_ui = 0.0
+    if rd_i > 0.0:
+        bi = 1.0 / rd_i
+        bi_ti = gd_i * d_ti * bi * bi
+        bi_ui = gd_i * d_ui * bi * bi
+    bj = 0.0
+    bj_tj = 0.0
+    bj_uj = 0.0
+    if rd_j > 0.0:
+        bj = 1.0 / rd_j
+        bj_tj = gd_j * d_tj * bj * bj
+        bj_uj = gd_j * d_uj * bj * bj
+    ci = 1.0 / a_i
+    cj = 1.0 / a_j
+    # the contact suction: F(u_f) = G_i - G_j = 0, F rising. If F has no root inside the table (water
+    # condenses at a contact already at capillary saturation faster than the two sides take it away, or the
+    # reverse at the dry end), u_f stays at that end and the flux is the median of G_i, G_j and 0: what one
+    # side brings and the other cannot take stays in the cell it came from
+    end = False
+    lo = U_MIN
+    hi = U_MAX
+    lo_seen = False
+    hi_seen = False
+    if not (lo < uf < hi):
+        uf = min(max(HALF * (ui + uj), lo), hi)
+    phi = 0.0
+    phi_u = 0.0
+    fi = 0.0
+    fi_u = 0.0
+    fj = 0.0
+    fj_u = 0.0
+    f = 0.0
+    fu = 0.0
+    for _ in range(60):
+        phi, phi_u = kelvin(uf)
+        fi, fi_u = interp(tk, mi, uf)
+        fj, fj_u = interp(tk, mj, uf)
+        pvf = phi * ps
+        f = bi * (pv_i - pvf) + ci * (fi - ph_i) - bj * (pvf - pv_j) - cj * (ph_j - fj)
+        fu = -(bi + bj) * phi_u * ps + ci * fi_u + cj * fj_u
+        if f == 0.0:
+            break
+        if (f > 0.0 and uf <= U_MIN) or (f < 0.0 and uf >= U_MAX):
+            end = True
+            break
+        if f > 0.0:
+            hi = uf
+            hi_seen = True
+        else:
+            lo = uf
+            lo_seen = True
+        nxt = uf - f / fu if fu > 0.0 else np.nan
+        if not (lo < nxt < hi):
+            if nxt <= lo and not lo_seen:
+                nxt = lo
+            elif nxt >= hi and not hi_seen:
+                nxt = hi
+            else:
+                nxt = HALF * (lo + hi)
+        if abs(nxt - uf) < 1e-6:  # the flux takes the last correction linearly: an error of order 1e-12
+            break
+        uf = nxt
+    pvf = phi * ps
+    pvf_t = phi * ps_t
+    pvf_u = phi_u * ps
+    dpi = pv_i - pvf
+    dpj = pvf - pv_j
+    gi = bi * dpi + ci * (fi - ph_i)
+    gj = bj * dpj + cj * (ph_j - fj)
+    gi_uf = -bi * pvf_u + ci * fi_u
+    gj_uf = bj * pvf_u - cj * fj_u
+    # G from one side (G_i = G_j at the root): the side less sensitive to u_f (a side that carries nothing
+    # gives exactly 0), with the last Newton correction of u_f applied linearly
+    corr = 0.0
+    wi = 1.0
+    wj = 0.0
+    g_uf = gi_uf
+    if abs(gj_uf) < abs(gi_uf):
+        wi = 0.0
+        wj = 1.0
+        g_uf = gj_uf
+    vi = HALF
+    vj = HALF
+    if end:
+        fu = 0.0
+        wi = 0.0
+        wj = 0.0
+        if gi * gj > 0.0:
+            if abs(gi) < abs(gj):
+                wi = 1.0
+            else:
+                wj = 1.0
+        # the enthalpy of the flux as it is on the side it was taken from (none when it is 0)
+        vi = wi
+        vj = wj
+    elif fu > 0.0:
+        corr = -f / fu
+    g = wi * gi + wj * gj + g_uf * corr
+    gvm = vi * (bi * dpi - bi * pvf_u * corr) + vj * (bj * dpj + bj * pvf_u * corr)
+    hv = H_V0 + C_VAP * tf
+    hl = C_WATER * tf
+    qt = q + gvm * (hv - hl) + g * hl
+    # derivatives: T_f = T_i - q rl_i, rl = a / lambda
+    tf_ti = 1.0 - q_ti * rl_i + q * gl_i * lam_ti
+    tf_ui = -q_ui * rl_i + q * gl_i * lam_ui
+    tf_tj = -q_tj * rl_i
+    tf_uj = -q_uj * rl_i
+    g_ti, q_ti = contact_partials(
+        tf_ti, bi_ti, 0.0, pv_ti, 0.0, 0.0, 0.0, q_ti,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
+    )  # fmt: skip
+    g_ui, q_ui = contact_partials(
+        tf_ui, bi_ui, 0.0, pv_ui, 0.0, ph_ui, 0.0, q_ui,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
+    )  # fmt: skip
+    g_tj, q_tj = contact_partials(
+        tf_tj, 0.0, bj_tj, 0.0, pv_tj, 0.0, 0.0, q_tj,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
+    )  # fmt: skip
+    g_uj, q_uj = contact_partials(
+        tf_uj, 0.0, bj_uj, 0.0, pv_uj, 0.0, ph_uj, q_uj,
+        bi, bj, ci, cj, dpi, dpj, pvf_t, pvf_u, g_uf, fu, gvm, g, hv, hl, wi, wj, vi, vj,
+    )  # fmt: skip
+    return g, qt, g_ti, g_ui, g_tj, g_uj, q_ti, q_ui, q_tj, q_uj, uf
 
 
 @hot
@@ -558,6 +717,7 @@ def run_ham(
     rp = np.zeros((n, 2))
     props = np.empty((n, 16))
     inv_dist = np.zeros(n)  # 1 / the distance between the centres of cells f - 1 and f
+    u_face = np.full(n, np.nan)  # the suction at each contact between materials (face f between cells f - 1, f)
     for f in range(1, n):
         inv_dist[f] = 1.0 / (HALF * (dx[f - 1] + dx[f]))
     cum_bc = np.zeros(bc.shape)
@@ -653,21 +813,10 @@ def run_ham(
                     gl = (props[j, 14] - props[i, 14]) * inv_dist[f]
                     gl_ui = -props[i, 15] * inv_dist[f]
                     gl_uj = props[j, 15] * inv_dist[f]
-                else:
-                    # the flux, then with ui and with uj perturbed (one call site: numba inlines each)
+                else:  # a contact between two materials: contact_flux below
                     gl = 0.0
                     gl_ui = 0.0
                     gl_uj = 0.0
-                    for pert in range(3):
-                        ui = un[i] + hu if pert == 1 else un[i]
-                        uj = un[j] + hu if pert == 2 else un[j]
-                        v = liquid_interface(ui, mat[i], dx[i], uj, mat[j], dx[j], tk)
-                        if pert == 0:
-                            gl = v
-                        elif pert == 1:
-                            gl_ui = (v - gl) / hu
-                        else:
-                            gl_uj = (v - gl) / hu
                 g0, q0, a00, a01, b00, b01, a10, a11, b10, b11 = face_flux(
                     tn[i], props[i, 2], props[i, 3], props[i, 4], props[i, 5], props[i, 7], props[i, 8],
                     props[i, 9], props[i, 10], props[i, 11], props[i, 12], props[i, 13],
@@ -675,6 +824,16 @@ def run_ham(
                     props[j, 9], props[j, 10], props[j, 11], props[j, 12], props[j, 13],
                     gl, gl_ui, gl_uj,
                 )  # fmt: skip
+                if mat[i] != mat[j]:
+                    g0, q0, a00, a01, b00, b01, a10, a11, b10, b11, u_face[f] = contact_flux(
+                        tn[i], un[i], props[i, 2], props[i, 3], props[i, 4], props[i, 5], props[i, 7], props[i, 8],
+                        props[i, 9], props[i, 10], props[i, 11], props[i, 12], props[i, 13], props[i, 14],
+                        props[i, 15], HALF * dx[i], mat[i],
+                        tn[j], un[j], props[j, 2], props[j, 3], props[j, 4], props[j, 5], props[j, 7], props[j, 8],
+                        props[j, 9], props[j, 10], props[j, 11], props[j, 12], props[j, 13], props[j, 14],
+                        props[j, 15], HALF * dx[j], mat[j],
+                        tk, u_face[f],
+                    )  # fmt: skip
                 res[i, 0] += g0
                 res[i, 1] += q0
                 res[j, 0] -= g0
