@@ -37,12 +37,10 @@ from ..jit import FLAGS, inner, kernel
 from .materials import C_WATER, DU, KELVIN, N_TABLE, T_REF, U_GRID, U_MAX, U_MIN
 
 #: the decorator of the functions the Newton loop calls (scalar arguments: as calls with array arguments or
-#: views, each cost two atomic reference count operations, most of the run time before). ``inlined`` for the
-#: two largest, the cell properties and the face flux: inlined into the loop by numba, they take the study
-#: wall's year from 0.255 to 0.237 s CPU at no compile cost; inlining every function (0.226 s) took the first
-#: compile from 11.8 to 19.6 s CPU (bench/ham.py; docs/moisture.md, "Speed")
-hot = njit(**FLAGS, no_cpython_wrapper=True)
-inlined = njit(**FLAGS, inline="always", no_cpython_wrapper=True)
+#: views, each cost two atomic reference count operations, most of the run time before), inlined into the loop
+#: by numba: the study wall's year 0.243-0.249 s CPU against 0.26 s with only `cell_props` and `face_flux`
+#: inlined, for a first compile of 22 s instead of 12 s once per install (bench/ham.py; docs/moisture.md, "Speed")
+hot = njit(**FLAGS, inline="always", no_cpython_wrapper=True)
 
 H_V0 = 2.501e6  # J/kg, latent heat at 0 degC
 C_VAP = 1870.0  # J/(kg K)
@@ -196,7 +194,7 @@ def node_props(t, u, m, tw, td, thermal):
     return w, lam, d, vapour_pressure(t, u)
 
 
-@inlined
+@hot
 def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, f):
     """A cell's properties and their derivatives from its table segment's end values (``*_a``, ``*_b``,
     fraction ``f``) and its half width ``half`` [m]: ``(w, dw/du, dlambda/du, dlambda/dT, half/lambda,
@@ -239,7 +237,7 @@ def cell_props(t, u, half, lam_dry, lam_w, lam_t, w_a, w_b, d_a, d_b, k_a, k_b, 
     )
 
 
-@inlined
+@hot
 def face_flux(
     ti, lam_ui, lam_ti, rl_i, gl_i, d_ti, d_ui, rd_i, gd_i, pv_i, pv_ti, pv_ui,
     tj, lam_uj, lam_tj, rl_j, gl_j, d_tj, d_uj, rd_j, gd_j, pv_j, pv_tj, pv_uj,
