@@ -237,3 +237,18 @@ def validation_table(names, measured: np.ndarray, simulated: np.ndarray) -> pd.D
         m = compute(measured[k], simulated[k])
         rows.append({"sensor": str(name), "rmse": m["rmse"], "mbe": m["mbe"], "n": int(m["n"])})
     return pd.DataFrame(rows, columns=list(VALIDATION_COLUMNS))
+
+
+#: the held-out window's table in an output directory (:func:`wallcal.validation.score_wall`)
+VALIDATION_CSV = "validation.csv"
+
+
+def write_validation(table: pd.DataFrame | None, directory) -> list[str]:
+    """Write ``validation.csv`` (:data:`VALIDATION_COLUMNS`) into ``directory`` (nothing without a table); the
+    names written."""
+    from pathlib import Path
+
+    if table is None:
+        return []
+    table.to_csv(Path(directory) / VALIDATION_CSV, index=False, float_format="%.6g")
+    return [VALIDATION_CSV]

@@ -457,10 +457,7 @@ class SimulationResult:
             self.spikes.to_csv(d / "spikes.csv", index=False)
         if self.profiles is not None:
             self.profiles.to_csv(d / "profiles.csv", index=False, float_format="%.6g")
-        if self.validation is not None:
-            from .validation import write as write_validation
-
-            write_validation(self.validation, d)
+        _metrics.write_validation(self.validation, d)
         (d / "info.json").write_text(json.dumps(self.info, indent=2, default=str))
 
 

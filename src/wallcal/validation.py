@@ -17,10 +17,11 @@ import pandas as pd
 
 from . import metrics as _metrics
 from .errors import DataError
+from .metrics import VALIDATION_CSV
+from .metrics import write_validation as write  # noqa: F401 (validation.write: the writer of validation.csv)
 from .study import PeriodSpec, Study
 
 #: the file every command that fits writes when the study has a validation window
-VALIDATION_CSV = "validation.csv"
 
 
 def validation_study(study: Study) -> Study | None:
@@ -132,14 +133,6 @@ class Validator:
         """:data:`wallcal.metrics.VALIDATION_COLUMNS` of every target at ``x``."""
         x = np.atleast_2d(x)
         return _metrics.validation_table(self.targets, self.measured(x)[0], self.simulate(x)[0])
-
-
-def write(table: pd.DataFrame | None, directory: str | Path) -> list[str]:
-    """Write ``validation.csv`` into ``directory`` (nothing without a table); the names written."""
-    if table is None:
-        return []
-    table.to_csv(Path(directory) / VALIDATION_CSV, index=False, float_format="%.6g")
-    return [VALIDATION_CSV]
 
 
 def read(directory: str | Path) -> pd.DataFrame | None:
