@@ -24,7 +24,6 @@ Usage: python bench/retrofit.py [--part thermal|moisture|both] [--repeat 3] [--s
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -38,24 +37,12 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "wallcal" / "examples" /
 
 
 def make_posterior(study, d: Path, n: int) -> None:
+    from wallcal.analysis.posterior_outputs import write_samples
     from wallcal.calibration import parse_space
 
     sp = parse_space(study)
-    rng = np.random.default_rng(1)
-    chain = rng.random((2 * n // 8 + 1, 8, sp.n))
-    d.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(
-        d / "chain.npz",
-        chain=chain,
-        log_prob=np.zeros(chain.shape[:2]),
-        names=np.array(sp.names),
-        lower=sp.lower,
-        upper=sp.upper,
-    )
-    (d / "posterior.json").write_text(json.dumps({"burn": len(chain) // 2, "thin": 1}))
-    from wallcal.outputs import format_entries
-
-    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
+    chain = np.random.default_rng(1).random((2 * n // 8 + 1, 8, sp.n))
+    write_samples(d, sp, chain, burn=len(chain) // 2)
 
 
 def thermal_study_file(tmp: Path) -> Path:

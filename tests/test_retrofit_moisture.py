@@ -394,10 +394,9 @@ def test_each_interface_side_has_its_own_materials_class(tmp_path):
 def test_mould_index_and_trend_intervals_over_draws(tmp_path):
     """With --from a posterior output the mould index and the trend get p05/p95 over the draws (each draw's wall
     from its variant's periodic end state); the example's layers carry hygric data."""
-    import json
 
+    from wallcal.analysis.posterior_outputs import write_samples
     from wallcal.calibration import parse_space
-    from wallcal.outputs import format_entries
 
     h = np.arange(24 * 4)
     write_epw(tmp_path / "w.epw", 0.0 + 6.0 * np.sin(2 * np.pi * h / 24), rh=np.full(h.size, 85.0))
@@ -405,19 +404,7 @@ def test_mould_index_and_trend_intervals_over_draws(tmp_path):
         study_with_retrofit(tmp_path, '[retrofit]\nweather = "w.epw"\n[[retrofit.variants]]\nname = "as built"\n')
     )
     sp = parse_space(study)
-    d = tmp_path / "post"
-    d.mkdir()
-    chain = np.random.default_rng(3).random((6, 4, sp.n))
-    np.savez_compressed(
-        d / "chain.npz",
-        chain=chain,
-        log_prob=np.zeros(chain.shape[:2]),
-        names=np.array(sp.names),
-        lower=sp.lower,
-        upper=sp.upper,
-    )
-    (d / "posterior.json").write_text(json.dumps({"burn": 2, "thin": 1}))
-    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
+    d = write_samples(tmp_path / "post", sp, np.random.default_rng(3).random((6, 4, sp.n)), burn=2)
     res = retrofit(study, from_dir=d, samples=6)
     v = res.variants[0]
     assert v.sample_moisture.shape == (6, 4)

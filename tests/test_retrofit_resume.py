@@ -4,8 +4,6 @@ refused in one line, and a progress line shows the draws."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -30,26 +28,14 @@ BODY = (
 @pytest.fixture
 def case(tmp_path, monkeypatch):
     """A small study with a [retrofit] table, its weather and a posterior output; chunks of 2 moisture draws."""
+    from wallcal.analysis.posterior_outputs import write_samples
     from wallcal.calibration import parse_space
-    from wallcal.outputs import format_entries
 
     h = np.arange(48)
     write_epw(tmp_path / "w.epw", 6.0 * np.sin(2 * np.pi * h / 24), rh=np.full(h.size, 85.0))
     study = study_with_retrofit(tmp_path, BODY)
     sp = parse_space(load_study(study))
-    d = tmp_path / "post"
-    d.mkdir()
-    chain = np.random.default_rng(3).random((6, 4, sp.n))
-    np.savez_compressed(
-        d / "chain.npz",
-        chain=chain,
-        log_prob=np.zeros(chain.shape[:2]),
-        names=np.array(sp.names),
-        lower=sp.lower,
-        upper=sp.upper,
-    )
-    (d / "posterior.json").write_text(json.dumps({"burn": 2, "thin": 1}))
-    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
+    d = write_samples(tmp_path / "post", sp, np.random.default_rng(3).random((6, 4, sp.n)), burn=2)
     monkeypatch.setattr(rr, "DRAW_CHUNK_PER_WORKER", 2)
     return tmp_path, study, d
 

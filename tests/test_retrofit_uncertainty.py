@@ -10,6 +10,7 @@ import pytest
 
 from retrofit_helpers import study_with_retrofit, write_epw, year_temperature
 from wallcal import load_study, weather
+from wallcal.analysis.posterior_outputs import write_samples
 from wallcal.calibration.space import parse_space
 from wallcal.cli import main
 from wallcal.outputs import format_entries
@@ -30,19 +31,8 @@ add_exterior = [{ material = "EPS", thickness = 0.1 }]
 def _posterior_dir(study, d, seed=0):
     """A posterior output as ``wallcal posterior`` writes it (chain.npz in unit coordinates, posterior.json)."""
     sp = parse_space(study)
-    rng = np.random.default_rng(seed)
-    chain = rng.random((30, 8, sp.n))
-    d.mkdir()
-    np.savez_compressed(
-        d / "chain.npz",
-        chain=chain,
-        log_prob=np.zeros(chain.shape[:2]),
-        names=np.array(sp.names),
-        lower=sp.lower,
-        upper=sp.upper,
-    )
-    (d / "posterior.json").write_text(json.dumps({"burn": 10, "thin": 2}))
-    (d / "manifest.json").write_text(json.dumps({"command": "posterior", **format_entries("posterior")}))
+    chain = np.random.default_rng(seed).random((30, 8, sp.n))
+    write_samples(d, sp, chain, burn=10, thin=2)
     return sp, chain
 
 

@@ -237,14 +237,7 @@ class PosteriorResult:
             self.predictive.bands.to_csv(d / "predictive.csv", index=False, float_format="%.6g")
             name = "validation.csv" if self.predicted_validation else "predictive_summary.csv"
             self.predictive.table.to_csv(d / name, index=False, float_format="%.6g")
-        np.savez_compressed(
-            d / "chain.npz",
-            chain=self.chain,
-            log_prob=self.log_prob,
-            names=np.array(self.space.names),
-            lower=self.space.lower,
-            upper=self.space.upper,
-        )
+        write_chain(d, self.chain, self.log_prob, self.space)
         (d / "posterior.json").write_text(json.dumps(self.to_json(), indent=2, default=float))
         from .plots import plot_corner, plot_trace
 
@@ -332,6 +325,34 @@ def apply_named(wall, names: list[str], x: np.ndarray):
         for lid in ids.rstrip("]").split(","):
             wall = wall.replace_layer(lid, **{prop: float(v)})
     return wall
+
+
+def write_chain(d: Path, chain: np.ndarray, log_prob: np.ndarray, space) -> None:
+    """``chain.npz``: the chain in unit coordinates of ``space``'s box, shape (steps, walkers, parameters), its log
+    posterior (steps, walkers), the parameter names and the box."""
+    np.savez_compressed(
+        Path(d) / "chain.npz",
+        chain=chain,
+        log_prob=log_prob,
+        names=np.array(space.names),
+        lower=space.lower,
+        upper=space.upper,
+    )
+
+
+def write_samples(d: Path, space, chain: np.ndarray, burn: int = 0, thin: int = 1) -> Path:
+    """A posterior output holding what :func:`load_samples` reads (``chain.npz``, ``posterior.json`` with the
+    burn-in and thinning, the manifest of this format): samples made elsewhere (another sampler, a test, a
+    benchmark) for ``wallcal retrofit --from`` and ``wallcal building --from``. ``chain`` in unit coordinates of
+    ``space``'s box, shape (steps, walkers, parameters). Returns ``d`` (created)."""
+    from ..outputs import format_entries
+
+    d = Path(d)
+    d.mkdir(parents=True, exist_ok=True)
+    write_chain(d, chain, np.zeros(chain.shape[:2]), space)
+    (d / "posterior.json").write_text(json.dumps({"burn": int(burn), "thin": int(thin)}))
+    (d / "manifest.json").write_text(json.dumps({"command": COMMAND, **format_entries(COMMAND)}))
+    return d
 
 
 def load_samples(from_dir: Path, wall, n_max: int) -> Samples:
