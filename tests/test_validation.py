@@ -28,6 +28,14 @@ PASSYS_DATA = REPO.parent / "shared" / "data" / "real" / "srouchier__buildingene
 needs_passys = pytest.mark.skipif(not PASSYS_DATA.exists(), reason=f"PASSYS data absent ({PASSYS_DATA})")
 
 
+def _passys_as_measured():
+    """The PASSYS study with its face sensors' declared offset set to 0 (the data as measured)."""
+    raw = copy.deepcopy(load_study(PASSYS).raw)
+    for face in ("exterior", "interior"):
+        raw["boundary"][face]["offset"] = 0.0
+    return parse_study(raw, base_dir=PASSYS.parent.resolve(), source=str(PASSYS)).replace(path=PASSYS.resolve())
+
+
 @pytest.fixture(scope="module")
 def trh():
     return load_study(TRH)
@@ -126,11 +134,7 @@ def test_passys_as_measured_adopts_only_what_the_window_confirms(tmp_path):
     """PASSYS with the face offset set to 0, the last 4 days held out: every adopted extension lowers the held-out
     RMSE of every temperature target against the base structure and lies inside its plausible range, off its
     bounds; the implausible in-sample favourites (lambda(T) at 0.02 1/K, probes moved by 1 cm) are refused."""
-    st = load_study(PASSYS)
-    raw = copy.deepcopy(st.raw)
-    for face in ("exterior", "interior"):
-        raw["boundary"][face]["offset"] = 0.0
-    s = parse_study(raw, base_dir=PASSYS.parent.resolve(), source=str(PASSYS)).replace(path=PASSYS.resolve())
+    s = _passys_as_measured()
     d = diagnose(s, progress=False)
     c = d.candidates.set_index("extension")
     temps = ("T_4", "T_8", "T_12")
@@ -194,11 +198,7 @@ def test_posterior_predictive_passys_as_measured():
     asserted."""
     from wallcal.analysis.posterior import posterior
 
-    st = load_study(PASSYS)
-    raw = copy.deepcopy(st.raw)
-    for face in ("exterior", "interior"):
-        raw["boundary"][face]["offset"] = 0.0
-    s = parse_study(raw, base_dir=PASSYS.parent.resolve(), source=str(PASSYS)).replace(path=PASSYS.resolve())
+    s = _passys_as_measured()
     d = diagnose(s, progress=False)
     x0 = np.array([d.x[n] for n in d.study.calibration.names])
     p = posterior(
