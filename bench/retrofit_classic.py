@@ -38,6 +38,27 @@ COLUMNS = [
 ]
 
 
+def write_classic(tmp: Path, interior_climate: str | None = None, lines: tuple[str, ...] = ()) -> tuple[Path, Path]:
+    """The classic case's study and wall files in ``tmp``: the bundled example's ``[retrofit]`` settings (its
+    ``moisture_interior_climate`` replaced by ``interior_climate``, ``lines`` added or replacing theirs) and
+    the classic variants. Returns (study, wall)."""
+    text = EXAMPLE.read_text()
+    head, _, rest = text.partition("\n[retrofit]\n")
+    settings = rest.partition("[[retrofit.variants]]")[0]
+    if interior_climate is not None:
+        settings = re.sub(r"(?m)^moisture_interior_climate = .*$", "", settings)
+        settings += f"moisture_interior_climate = {interior_climate!r}\n".replace("'", '"')
+    for line in lines:
+        key = line.partition("=")[0].strip()
+        settings = re.sub(rf"(?m)^{re.escape(key)} = .*$", "", settings) + line + "\n"
+    head = head.replace('file = "measured.csv"', f'file = "{(EXAMPLE.parent / "measured.csv").as_posix()}"')
+    head = head.replace('reference_wall = "true_wall.toml"', "")
+    variants = (CLASSIC / "variants.toml").read_text()
+    (tmp / "study.toml").write_text(head + "\n[retrofit]\n" + settings + variants)
+    (tmp / "brick.toml").write_text((CLASSIC / "brick_wall.toml").read_text())
+    return tmp / "study.toml", tmp / "brick.toml"
+
+
 def main() -> None:
     from wallcal.cli import main as wallcal
 
@@ -45,25 +66,10 @@ def main() -> None:
     ap.add_argument("--interior-climate", help="replaces the example's [retrofit] moisture_interior_climate")
     ap.add_argument("--set", action="append", default=[], metavar="'KEY = VALUE'", help="a [retrofit] line")
     args = ap.parse_args()
-    text = EXAMPLE.read_text()
-    head, _, rest = text.partition("\n[retrofit]\n")
-    settings = rest.partition("[[retrofit.variants]]")[0]
-    if args.interior_climate is not None:
-        settings = re.sub(r"(?m)^moisture_interior_climate = .*$", "", settings)
-        settings += f"moisture_interior_climate = {args.interior_climate!r}\n".replace("'", '"')
-    for line in args.set:
-        key = line.partition("=")[0].strip()
-        settings = re.sub(rf"(?m)^{re.escape(key)} = .*$", "", settings) + line + "\n"
-    head = head.replace('file = "measured.csv"', f'file = "{(EXAMPLE.parent / "measured.csv").as_posix()}"')
-    head = head.replace('reference_wall = "true_wall.toml"', "")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        variants = (CLASSIC / "variants.toml").read_text()
-        (tmp / "study.toml").write_text(head + "\n[retrofit]\n" + settings + variants)
-        (tmp / "brick.toml").write_text((CLASSIC / "brick_wall.toml").read_text())
-        code = wallcal(
-            ["retrofit", str(tmp / "study.toml"), "--wall", str(tmp / "brick.toml"), "--out", str(tmp / "out")]
-        )
+        study, wall = write_classic(tmp, args.interior_climate, tuple(args.set))
+        code = wallcal(["retrofit", str(study), "--wall", str(wall), "--out", str(tmp / "out")])
         if code != 0:
             raise SystemExit(code)
         tab = pd.read_csv(tmp / "out" / "variants.csv").set_index("variant")
