@@ -69,13 +69,13 @@ DRY_RH = 0.80
 #: theta_e <= -10, rising linearly to 60 % / 70 % at theta_e >= 20. (theta_e, value) at the two ends
 EN15026_T = ((10.0, 20.0), (20.0, 25.0))
 EN15026_RH = {"EN 15026 normal": ((-10.0, 0.30), (20.0, 0.60)), "EN 15026 high": ((-10.0, 0.40), (20.0, 0.70))}
-#: the solver's grid: cells of 0.5 mm at every face and interface doubling to at most 40 mm (first cell, growth,
+#: the solver's grid: cells of 0.5 mm at every face and interface growing fourfold to at most 40 mm (first cell, growth,
 #: widest cell [m]); the interface conditions (where the mould index is read) are those 0.25 mm into each
 #: material. Its highest interface RH is within 0.016 of a grid of 0.1 mm cells growing by 1.3 to 20 mm on the
 #: classic case and the bundled example's variants, and the mould index within 0.05 (bench/retrofit_grid.py);
 #: the 5 mm cells used before took up more rain at the exterior face and read the interface 2.5 mm into each
 #: layer: RH up to 0.10 off
-GRID = (5e-4, 2.0, 0.04)
+GRID = (5e-4, 4.0, 0.04)
 DT_MAX = 3600.0
 #: EPW missing-value codes of the rain fields
 MISSING_DEPTH, MISSING_QUANTITY, MISSING_WIND = 999.0, 99.0, 999.0
