@@ -1,13 +1,14 @@
 """Grid convergence of the retrofit moisture runs (``wallcal.retrofitting.moisture_risk.GRID``).
 
 Runs the point walls of ``wallcal retrofit`` (no posterior draws) for the classic case (examples/retrofit_classic,
-as bench/retrofit_classic.py; also with ``driving_rain_factor = 2.0``) and the bundled example's five variants,
-on several grids (first cell at every face and interface [m], growth, widest cell [m]), and on the
-retrofit grid with steps of at most 5 minutes (the time-step check). For each variant it
+as bench/retrofit_classic.py; also with ``driving_rain_factor`` 2.0, and 8.0: about the station's real rain) and
+the bundled example's five variants, on several grids (first cell at every face and interface [m], growth, widest
+cell [m]; a capillary layer's face cells are ``moisture_risk.CAPILLARY_CELL``, or the grid's first cell if
+smaller), and on the retrofit grid with steps of at most 5 minutes (the time-step check). For each variant it
 prints the highest hourly RH and mould index over every interface of the periodic year, their difference from the
 finest grid, and the solver's time. The table in docs/retrofit.md ("Grid") comes from this script.
 
-Usage: python bench/retrofit_grid.py [--quick]   (--quick: the classic case only; about 1 min, else about 3)
+Usage: python bench/retrofit_grid.py [--quick]   (--quick: the classic cases only; about 2 min, else about 4)
 """
 
 from __future__ import annotations
@@ -70,9 +71,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         (tmp / "rain").mkdir()
+        (tmp / "rain8").mkdir()
         cases = {
             "classic": write_classic(tmp),
             "classic, R_1 = 2.0": write_classic(tmp / "rain", lines=("driving_rain_factor = 2.0",)),
+            "classic, R_1 = 8.0": write_classic(tmp / "rain8", lines=("driving_rain_factor = 8.0",)),
         }
         if not args.quick:
             cases["bundled example"] = (EXAMPLE, None)

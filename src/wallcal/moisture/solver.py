@@ -10,6 +10,7 @@ Positions ``x`` [m] are measured from the exterior face (side 0).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,15 +38,21 @@ class Grid:
     materials: list[HygricMaterial]
 
 
-def make_grid(layers: list[Layer], first: float = 2e-4, ratio: float = 1.15, max_cell: float = 0.01) -> Grid:
+def make_grid(
+    layers: list[Layer], first: float | Sequence[float] = 2e-4, ratio: float = 1.15, max_cell: float = 0.01
+) -> Grid:
     """Finite-volume cells refined geometrically towards both faces of every layer.
 
-    ``first`` is the width of the cells at each face [m], ``ratio`` the growth from one cell to the next,
-    ``max_cell`` the widest cell [m]."""
+    ``first`` is the width of the cells at each face [m] (one value, or one per layer), ``ratio`` the growth
+    from one cell to the next, ``max_cell`` the widest cell [m]."""
     if not layers:
         raise StudyError(["layers: at least one layer is needed"])
-    if not (first > 0 and ratio >= 1 and max_cell >= first):
-        raise StudyError([f"grid: need first > 0, ratio >= 1, max_cell >= first; got {first}, {ratio}, {max_cell}"])
+    firsts = [float(first)] * len(layers) if np.isscalar(first) else [float(f) for f in first]
+    if len(firsts) != len(layers):
+        raise StudyError([f"grid: need one first cell per layer ({len(layers)}), got {len(firsts)}"])
+    for f in firsts:
+        if not (f > 0 and ratio >= 1 and max_cell >= f):
+            raise StudyError([f"grid: need first > 0, ratio >= 1, max_cell >= first; got {f}, {ratio}, {max_cell}"])
     materials: list[HygricMaterial] = []
     dx_all, mat_all = [], []
     for k, layer in enumerate(layers):
@@ -55,7 +62,7 @@ def make_grid(layers: list[Layer], first: float = 2e-4, ratio: float = 1.15, max
             materials.append(layer.material)
         half = 0.5 * layer.thickness
         sizes = []
-        s = first
+        s = firsts[k]
         total = 0.0
         while total + s < half:
             sizes.append(s)

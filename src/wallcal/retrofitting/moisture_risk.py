@@ -69,13 +69,14 @@ DRY_RH = 0.80
 #: theta_e <= -10, rising linearly to 60 % / 70 % at theta_e >= 20. (theta_e, value) at the two ends
 EN15026_T = ((10.0, 20.0), (20.0, 25.0))
 EN15026_RH = {"EN 15026 normal": ((-10.0, 0.30), (20.0, 0.60)), "EN 15026 high": ((-10.0, 0.40), (20.0, 0.70))}
-#: the solver's grid: cells of 0.5 mm at every face and interface growing fourfold to at most 40 mm (first cell, growth,
-#: widest cell [m]); the interface conditions (where the mould index is read) are those 0.25 mm into each
-#: material. Its highest interface RH is within 0.016 of a grid of 0.1 mm cells growing by 1.3 to 20 mm on the
-#: classic case and the bundled example's variants, and the mould index within 0.05 (bench/retrofit_grid.py);
-#: the 5 mm cells used before took up more rain at the exterior face and read the interface 2.5 mm into each
-#: layer: RH up to 0.10 off
+#: the solver's grid: cells of 0.5 mm at every face and interface growing fourfold to at most 40 mm (first cell,
+#: growth, widest cell [m]), and of CAPILLARY_CELL at the faces of a layer that takes up liquid water (a wetted
+#: capillary face needs them: rain uptake, condensate taken up behind interior insulation; a thin cell in a
+#: capillary layer costs few steps, in a non-capillary one many). The interface conditions (where the mould index
+#: is read) are those half a cell into each material. bench/retrofit_grid.py and docs/retrofit.md ("Grid") give
+#: its convergence against a grid of 0.1 mm cells growing by 1.3 to 20 mm everywhere
 GRID = (5e-4, 4.0, 0.04)
+CAPILLARY_CELL = 1e-4
 DT_MAX = 3600.0
 #: EPW missing-value codes of the rain fields
 MISSING_DEPTH, MISSING_QUANTITY, MISSING_WIND = 999.0, 99.0, 999.0
@@ -329,7 +330,7 @@ def periodic_run(
     max_years: int = MAX_YEARS,
     initial: tuple[np.ndarray, np.ndarray] | None = None,
     decline: float = mould.DECLINE_COEFFICIENT,
-    grid: tuple[float, ...] = GRID,
+    grid: tuple[float, float, float] = GRID,
 ) -> HygroResult:
     """Run the layers year after year until periodic (module docstring).
 
@@ -340,7 +341,8 @@ def periodic_run(
     import time
 
     t0 = time.perf_counter()
-    g = make_grid(layers, *grid)
+    first, ratio, widest = grid
+    g = make_grid(layers, [min(CAPILLARY_CELL, first) if _capillary(lay) else first for lay in layers], ratio, widest)
     n_layers = len(layers)
     # layer of each cell (make_grid lays the layers out in order, an even number of cells each)
     bounds = np.cumsum([lay.thickness for lay in layers])
@@ -427,6 +429,11 @@ def periodic_run(
         stats={**stats, "cells": int(g.dx.size)},
         final_state=(t_init, rh_init),
     )
+
+
+def _capillary(layer: Layer) -> bool:
+    """Whether the layer's material takes up liquid water (has a liquid transport function)."""
+    return layer.material.liquid_conductivity is not None or layer.material.moisture_diffusivity is not None
 
 
 def _w_of(g, rh) -> np.ndarray:
