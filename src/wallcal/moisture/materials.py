@@ -197,8 +197,13 @@ class HygricMaterial:
             self.delta_ref = D_AIR / (R_V * T_REF) / mu
         self.kirchhoff = self._kirchhoff(pc, w, where)
 
+    @property
+    def capillary(self) -> bool:
+        """Whether the material takes up liquid water (it has a liquid transport function)."""
+        return self.liquid_conductivity is not None or self.moisture_diffusivity is not None
+
     def _kirchhoff(self, pc, w, where) -> np.ndarray:
-        if self.liquid_conductivity is None and self.moisture_diffusivity is None:
+        if not self.capillary:
             return np.zeros_like(w)
         if self.moisture_diffusivity is not None:
             # dPhi = K dpc = -D_w dw (trapezoid in w: exact for a constant D_w)

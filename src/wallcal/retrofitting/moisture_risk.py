@@ -342,7 +342,9 @@ def periodic_run(
 
     t0 = time.perf_counter()
     first, ratio, widest = grid
-    g = make_grid(layers, [min(CAPILLARY_CELL, first) if _capillary(lay) else first for lay in layers], ratio, widest)
+    g = make_grid(
+        layers, [min(CAPILLARY_CELL, first) if lay.material.capillary else first for lay in layers], ratio, widest
+    )
     n_layers = len(layers)
     # layer of each cell (make_grid lays the layers out in order, an even number of cells each)
     bounds = np.cumsum([lay.thickness for lay in layers])
@@ -429,11 +431,6 @@ def periodic_run(
         stats={**stats, "cells": int(g.dx.size)},
         final_state=(t_init, rh_init),
     )
-
-
-def _capillary(layer: Layer) -> bool:
-    """Whether the layer's material takes up liquid water (has a liquid transport function)."""
-    return layer.material.liquid_conductivity is not None or layer.material.moisture_diffusivity is not None
 
 
 def _w_of(g, rh) -> np.ndarray:
