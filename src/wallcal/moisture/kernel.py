@@ -312,6 +312,17 @@ def contact_partials(
     return g_x, q
 
 
+@hot
+def half_cell_vapour(rd, gd, d_t, d_u):
+    """A half cell's vapour conductance ``1 / rd`` and its derivatives in T and u (``gd`` the derivative of
+    ``rd`` in the permeability, ``d_t``, ``d_u`` the permeability's in T and u); 0 for a vapour-tight half cell
+    (``rd`` 0)."""
+    if rd > 0.0:
+        b = 1.0 / rd
+        return b, gd * d_t * b * b, gd * d_u * b * b
+    return 0.0, 0.0, 0.0
+
+
 @inner()
 def contact_flux(
     ti, ui, lam_ui, lam_ti, rl_i, gl_i, d_ti, d_ui, rd_i, gd_i, pv_i, pv_ti, pv_ui, ph_i, ph_ui, a_i, mi,
@@ -343,20 +354,8 @@ def contact_flux(
     tf = ti - q * rl_i
     ps, ps_t = psat_slope(tf)
     # vapour conductances 1 / rd and liquid ones 1 / a
-    bi = 0.0
-    bi_ti = 0.0
-    bi_ui = 0.0
-    if rd_i > 0.0:
-        bi = 1.0 / rd_i
-        bi_ti = gd_i * d_ti * bi * bi
-        bi_ui = gd_i * d_ui * bi * bi
-    bj = 0.0
-    bj_tj = 0.0
-    bj_uj = 0.0
-    if rd_j > 0.0:
-        bj = 1.0 / rd_j
-        bj_tj = gd_j * d_tj * bj * bj
-        bj_uj = gd_j * d_uj * bj * bj
+    bi, bi_ti, bi_ui = half_cell_vapour(rd_i, gd_i, d_ti, d_ui)
+    bj, bj_tj, bj_uj = half_cell_vapour(rd_j, gd_j, d_tj, d_uj)
     ci = 1.0 / a_i
     cj = 1.0 / a_j
     # the contact suction: F(u_f) = G_i - G_j = 0, F rising. If F has no root inside the table (water
