@@ -185,3 +185,87 @@ def test_run_report_stage_shows_the_moisture_figures(bench, tmp_path):
     for _, p in so.figures:
         if p.name.startswith("moisture_"):
             assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
+
+
+def _short_moisture_study(parameters):
+    """The bundled TRH-1 moisture study on its first two days, calibrating ``parameters``."""
+    import copy
+    import datetime as dt
+
+    from wallcal.study import load_study, parse_study
+
+    path = REPO / "src" / "wallcal" / "examples" / "trh" / "study_moisture.toml"
+    raw = copy.deepcopy(load_study(path).raw)
+    raw["period"] = {"start": dt.datetime(2021, 1, 1, 0, 5), "end": dt.datetime(2021, 1, 2, 23, 55)}
+    raw["calibration"]["parameters"] = parameters
+    return parse_study(raw, base_dir=path.parent, source=str(path)).replace(path=path)
+
+
+@pytest.mark.parametrize(
+    "parameter, what",
+    [
+        (
+            {
+                "layers": ["glass_wool"],
+                "property": "conductivity_temperature_coefficient",
+                "bounds": [0.0, 0.02],
+                "bounds_kind": "absolute",
+            },
+            "lambda(T)",
+        ),
+        (
+            {
+                "layers": ["wind_barrier"],
+                "property": "contact_resistance",
+                "bounds": [0.0, 0.2],
+                "bounds_kind": "absolute",
+            },
+            "contact resistance",
+        ),
+    ],
+)
+def test_ham_engine_refuses_a_batch_parameter_it_cannot_represent(parameter, what):
+    """A calibration parameter the ham engine has no law for is refused when the batch is prepared: the batch walls
+    are not checked again, and the engine once ran them with the parameter silently ignored (every value gave the
+    same series)."""
+    from wallcal.calibration.objective import Evaluator
+    from wallcal.calibration.space import space_of
+    from wallcal.errors import EngineError
+    from wallcal.simulation import BATCH_NEEDS, prepare
+
+    study = _short_moisture_study([parameter])
+    with pytest.raises(EngineError, match=f"ham engine has no {re.escape(what)}"):
+        Evaluator(prepare(study, needs=BATCH_NEEDS), space_of(study))
+
+
+def test_diagnose_proposes_no_candidate_the_engine_cannot_represent():
+    from wallcal.analysis.diagnose_candidates import propose
+    from wallcal.engines import engine_class
+
+    study = _short_moisture_study([{"layers": ["glass_wool"], "property": "conductivity", "bounds": [-0.2, 0.2]}])
+    everything = {e.kind for e in propose(study, study.calibration)}
+    assert {"contact_resistance", "conductivity_temperature_coefficient"} <= everything
+    kinds = {e.kind for e in propose(study, study.calibration, capabilities=engine_class("ham").capabilities)}
+    assert kinds & {"contact_resistance", "conductivity_temperature_coefficient"} == set()
+    assert {"moisture_conductivity_coefficient", "offset", "depth"} <= kinds
+
+
+def test_identifiability_stencil_stays_inside_the_box_at_a_bound():
+    """At an optimum on a bound the central differences turn one-sided: a vapour resistance factor of 1 (its
+    physical floor and the box's lower bound) was stepped to 0.999, which the material refuses."""
+    from wallcal.analysis.identifiability import identifiability
+    from wallcal.calibration.space import space_of
+
+    study = _short_moisture_study(
+        [
+            {
+                "layers": ["glass_wool"],
+                "property": "vapour_resistance_factor",
+                "bounds": [1.0, 3.0],
+                "bounds_kind": "absolute",
+            }
+        ]
+    )
+    space = space_of(study)
+    res = identifiability(study, x0=space.lower.copy(), add_fluxes=False)
+    assert res is not None

@@ -603,7 +603,9 @@ def diagnose(
     _, n_pairs, _, _ = ar1_profile(ev0.errors(base.x[None])[0], ev0.mask, tau, block)
     resid = residual_analysis(ev0, base.x, prepared.times)
     y = {t: ev0.y[k][ev0.mask[k]] for k, t in enumerate(space.targets)}
-    exts = [e for e in propose(study, space, resid, y) if kinds is None or e.kind in kinds]
+    exts = [
+        e for e in propose(study, space, resid, y, prepared.engine.capabilities) if kinds is None or e.kind in kinds
+    ]
     by_name = {e.name: e for e in exts}
     fits: dict[tuple, _Fit] = {}
 

@@ -137,12 +137,17 @@ class Extension:
     reason: str = ""
 
 
+#: the unit of an error (a difference) of each sensor quantity, as the texts write it
+ERROR_UNITS = {"temperature": "K", "heat_flux": "W/m2", "relative_humidity": "RH", "water_content": "kg/m3"}
+
+
 def unit_label(study, target) -> str:
-    return "W/m2" if study.sensor(target).quantity == "heat_flux" else "K"
+    return ERROR_UNITS[study.sensor(target).quantity]
 
 
-def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list[Extension]:
-    """Candidate extensions of ``space`` for ``study`` (those already in the space are left out).
+def propose(study, space, residuals: pd.DataFrame | None = None, y=None, capabilities=None) -> list[Extension]:
+    """Candidate extensions of ``space`` for ``study`` (those already in the space are left out, and those the
+    engine cannot represent).
 
     Parameters
     ----------
@@ -152,6 +157,9 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
         :func:`residual_analysis` at the calibrated point (for the reasons given).
     y : dict, optional
         Target -> valid measured samples (bounds of a relative-accuracy sensor's offset).
+    capabilities : Capabilities, optional
+        The engine's (:class:`wallcal.engines.base.Capabilities`): no contact resistance or lambda(T) candidate
+        for an engine without them (the ham engine). Default: every kind.
     """
     from .identifiability import sensor_sigma
 
@@ -188,7 +196,9 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
             )
         )
     seen = set()
-    for t in probes:
+    contacts = capabilities is None or capabilities.contact_resistance
+    laws = capabilities is None or capabilities.conductivity_laws
+    for t in probes if contacts else ():
         d = wall.probe(t).depth
         near = np.flatnonzero(np.isclose(inter, d, atol=1e-6, rtol=0))
         if len(near):
@@ -227,7 +237,7 @@ def propose(study, space, residuals: pd.DataFrame | None = None, y=None) -> list
             groups.append((i,))
     taken = {i for p in space.parameters if p.property == "conductivity_temperature_coefficient" for i in p.layers}
     eligible = []
-    for g in groups:
+    for g in groups if laws else ():
         layers = [wall.layers[i] for i in g]
         if any(
             lay.is_massless

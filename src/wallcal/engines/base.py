@@ -500,9 +500,15 @@ class Engine:
         if inp.flux_depths and not cap.flux_at_depth:
             out.append(f"the {self.name} engine gives no heat flux inside the wall")
         layers = inp.wall.layers
-        if not cap.conductivity_laws and any(layer.is_temperature_dependent for layer in layers):
+        # the options name the layers whose lambda(T) or contact resistance a batch varies (a calibration's
+        # parameters): a batch wall is not checked again, so an engine without them must refuse here
+        if not cap.conductivity_laws and (
+            any(layer.is_temperature_dependent for layer in layers) or inp.options.exponential_layers
+        ):
             out.append(f"the {self.name} engine has no lambda(T) law")
-        if not cap.contact_resistance and any(layer.contact_resistance for layer in layers):
+        if not cap.contact_resistance and (
+            any(layer.contact_resistance for layer in layers) or inp.options.contact_layers
+        ):
             out.append(f"the {self.name} engine has no contact resistance")
         if not cap.massless_layers and any(layer.is_massless for layer in layers):
             out.append(f"the {self.name} engine has no no-mass layer")
