@@ -407,10 +407,14 @@ def identifiability(
     ev = Evaluator(prepared, dataclasses.replace(space, targets=union))
     n = space.n
     z0 = to_z(space, x0)
-    Zp = z0[None] + h * np.eye(n)
-    Zm = z0[None] - h * np.eye(n)
-    E = ev.errors(np.vstack([x0[None], from_z(space, Zp), from_z(space, Zm)]))  # one batch, 2n+1 runs
-    D = (E[1 : n + 1] - E[n + 1 :]) / (2 * h)
+    # the stencil stays inside the box (one-sided at a bound): outside it a property may have no meaning (a
+    # vapour resistance factor below 1) and the engine refuses it
+    zlo, zhi = to_z(space, space.lower), to_z(space, space.upper)
+    Zp = np.minimum(z0[None] + h * np.eye(n), zhi[None])
+    Zm = np.maximum(z0[None] - h * np.eye(n), zlo[None])
+    X = np.clip(from_z(space, np.vstack([Zp, Zm])), space.lower, space.upper)  # no round-off past a bound
+    E = ev.errors(np.vstack([x0[None], X]))  # one batch, 2n+1 runs
+    D = (E[1 : n + 1] - E[n + 1 :]) / (Zp - Zm)[np.arange(n), np.arange(n)][:, None, None]
     sig, phi, blocks = {}, {}, {}
     for k, name in enumerate(union):
         m = ev.mask[k]
@@ -530,7 +534,8 @@ def _analyse(space, wall, x0, J, tset, with_flux, sig, phi) -> TargetAnalysis:
         else:
             v = verdict(sd / pr)
         crow.append({"combination": name, "null share": share, "sd %": 100 * sd, "prior sd %": 100 * pr, "verdict": v})
-    combos = pd.DataFrame(crow).set_index("combination")
+    combos = pd.DataFrame(crow, columns=["combination", "null share", "sd %", "prior sd %", "verdict"])
+    combos = combos.set_index("combination")  # a space may have no combination (one hygric property)
     # how strongly the data pin the common scale (sensitivity of the scaled residuals to log k)
     scale = [d for key, _, d in structural_directions(space, wall, with_flux=False) if key == "common_scale"]
     gain = None
