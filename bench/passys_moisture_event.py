@@ -1,0 +1,127 @@
+"""What the heat-only PASSYS model misses: the interior humidity step of 2014-01-08 (docs/identifiability.md,
+"Real walls").
+
+    PYTHONPATH=src python bench/passys_moisture_event.py [--figure docs/passys_moisture_event.png]
+
+``wallcal diagnose`` of the two PASSYS studies, each as measured (no offset declared) with its last 4 days held
+out: the heat-only ``examples/passys/study.toml`` (its face offset set to 0) and the heat-and-moisture
+``examples/passys/study_moisture.toml``. Each adopted structure at its recalibrated optimum is then run over the
+whole record, window included. Printed: the adopted extensions and values, the held-out RMSE of T_4, T_8, T_12,
+and the mean residual (model - measured) of each probe over the day before the interior humidity (HR_0) crosses
+0.55 and over the two days after it. The figure shows HR_0 and the in-wall HR, and both models' temperature
+residuals, with the held-out window shaded. About 70 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wallcal.analysis.diagnose import diagnose
+from wallcal.calibration.objective import Evaluator
+from wallcal.calibration.space import space_of
+from wallcal.simulation import BATCH_NEEDS, prepare
+from wallcal.study import PeriodSpec, load_study, parse_study
+
+ROOT = Path(__file__).resolve().parents[1]
+THERMAL = ROOT / "examples" / "passys" / "study.toml"
+MOISTURE = ROOT / "examples" / "passys" / "study_moisture.toml"
+PROBES = ("T_4", "T_8", "T_12")
+
+
+def as_measured(path: Path):
+    """The study with its face sensors' declared offset set to 0."""
+    raw = copy.deepcopy(load_study(path).raw)
+    for face in ("exterior", "interior"):
+        raw["boundary"][face]["offset"] = 0.0
+    return parse_study(raw, base_dir=path.parent, source=str(path)).replace(path=path)
+
+
+def whole_record(d) -> pd.DataFrame:
+    """Residuals (model - measured, the adopted offsets applied) of every target of a diagnosis' adopted structure
+    over the whole record, held-out window included; indexed by time."""
+    st = d.study
+    p = st.period
+    full = st.replace(period=PeriodSpec(warmup_start=p.warmup_start, start=p.start, end=p.validation_end))
+    space = space_of(st)
+    ev = Evaluator(prepare(full, needs=BATCH_NEEDS), space)
+    x = np.array([d.x[n] for n in space.names])
+    e = ev.errors(x[None])[0]
+    e = np.where(ev.mask, e, np.nan)
+    return pd.DataFrame(e.T, index=ev.prepared.times, columns=list(space.targets))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--figure", type=Path, help="write the figure here (PNG)")
+    args = ap.parse_args(argv)
+    humid = load_study(MOISTURE)
+    hp = humid.period
+    data = prepare(humid.replace(period=PeriodSpec(warmup_start=hp.start, start=hp.start, end=hp.validation_end)))
+    rh = data.measured  # the in-wall HR as measured
+    inside = data.inp.interior.relative_humidity
+    at = np.asarray(data.inp.output_positions).astype(int)  # the engine's steps of the measured times
+    hr0 = pd.Series(np.asarray(inside, dtype=float)[at], index=data.times)
+    step = hr0[hr0 > 0.55].index[0]
+    day, two = pd.Timedelta("1D"), pd.Timedelta("2D")
+    print(
+        f"interior RH (HR_0) crosses 0.55 at {step}: mean {hr0[step - day : step].mean():.2f} over the day before, "
+        f"{hr0[step : step + two].mean():.2f} over the two days after"
+    )
+    rows, resid = {}, {}
+    for label, study in (("heat only (fd-cn)", as_measured(THERMAL)), ("heat and moisture (ham)", humid)):
+        t0 = time.perf_counter()
+        d = diagnose(study, progress=False)
+        v = d.validation.set_index("sensor")["rmse"]
+        e = whole_record(d)
+        resid[label] = e
+        before = e.loc[step - day : step, list(PROBES)].mean()
+        after = e.loc[step : step + two, list(PROBES)].mean()
+        rows[label] = {
+            **{f"held-out {t}": v[t] for t in PROBES},
+            **{f"shift {t}": after[t] - before[t] for t in PROBES},
+        }
+        vals = ", ".join(f"{n} = {d.x[n]:.4g}" for n in d.adopted) or "nothing"
+        print(f"{label}: adopted {vals} ({time.perf_counter() - t0:.0f} s)")
+    t = pd.DataFrame(rows).T
+    print("held-out RMSE [K] and the step in the mean residual (model - measured) [K], the two days after the")
+    print("interior humidity step against the day before:")
+    print(t.to_string(float_format=lambda v: f"{v:+.2f}" if abs(v) < 10 else f"{v:.0f}"))
+    if args.figure:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True, constrained_layout=True)
+        ax[2].sharey(ax[1])  # the two models' residuals on one scale
+        ax[0].plot(hr0.index, hr0, color="k", label="HR_0 (interior face)")
+        for n in ("HR_4", "HR_8", "HR_12"):
+            ax[0].plot(rh.index, rh[n], label=n)
+        ax[0].set_ylabel("relative humidity [-]")
+        ax[0].legend(ncol=4, fontsize=8)
+        for a, (label, e) in zip(ax[1:], resid.items(), strict=True):
+            for n in PROBES:
+                a.plot(e.index, e[n], label=n, lw=0.8)
+            a.axhline(0, color="grey", lw=0.5)
+            a.set_ylabel("model - measured [K]")
+            a.set_title(label, fontsize=9)
+            a.legend(ncol=3, fontsize=8)
+        p = humid.period
+        for a in ax:
+            a.axvspan(p.validation_start, p.validation_end, color="0.9", zorder=0)
+            a.axvline(step, color="k", ls=":", lw=0.8)
+        ax[0].set_title("PASSYS as measured, each study's diagnosed structure; shaded: held out", fontsize=9)
+        args.figure.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(args.figure, dpi=110)
+        print(f"wrote {args.figure}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
