@@ -561,3 +561,22 @@ def test_a_combination_is_fitted_from_each_parent(probe_campaign, monkeypatch):
         # (node_starts itself varies only probe depths: compare the other parameters)
         other = np.array([not n.startswith("depth[") for n in names])
         assert len({tuple(np.round(s[other], 12)) for s in starts}) >= 2, names
+
+
+def test_largest_step_finds_an_event_beside_a_daily_pattern():
+    """residuals.csv's ``step``/``step_at``: the change of the residual's daily mean where it is largest. A level
+    change of 1 K at a known time, under a daily pattern of 0.3 K and noise, is found at that time within an hour
+    and sized within 0.05 K; the daily pattern alone gives no step above 0.05 K; a record under a day gives none."""
+    from wallcal.analysis.diagnose_candidates import largest_step
+
+    rng = np.random.default_rng(3)
+    t = pd.date_range("2014-01-01", periods=6 * 288, freq="5min")
+    daily = 0.3 * np.sin(2 * np.pi * np.arange(len(t)) / 288)
+    noise = 0.02 * rng.standard_normal(len(t))
+    event = np.where(t >= pd.Timestamp("2014-01-04T09:10"), -1.0, 0.0)
+    step, at = largest_step(t, daily + noise + event)
+    assert step == pytest.approx(-1.0, abs=0.05)
+    assert abs(pd.Timestamp(at) - pd.Timestamp("2014-01-04T09:10")) <= pd.Timedelta("1h")
+    step, _ = largest_step(t, daily + noise)
+    assert abs(step) < 0.05
+    assert np.isnan(largest_step(t[:100], noise[:100])[0])

@@ -208,6 +208,7 @@ class Diagnosis:
                 f"{t}: RMSE {row['rmse']:.3f} {units.get(t, '')}, bias {row['bias']:+.3f}, lag {row['lag_min']:+.1f} "
                 f"min, daily pattern {row['daily_amplitude']:.3f} peak to peak ({100 * row['daily_share']:.0f} % of "
                 f"the variance), phi {row['phi']:.3f}"
+                + (f", largest step of its daily mean {row['step']:+.3f} at {row['step_at']}" if row["step_at"] else "")
             )
         lines.append("Residuals of the calibrated study structure: " + "; ".join(feats) + ".")
         lines += self.notes

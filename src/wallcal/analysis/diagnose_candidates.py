@@ -56,8 +56,9 @@ def residual_analysis(ev, x, times) -> pd.DataFrame:
     Columns: ``rmse``, ``bias`` (mean residual), ``sd`` (about the bias), ``phi`` (lag-1 autocorrelation of
     the de-meaned residuals), ``lag_min`` (the shift of the simulated series [min] that best matches the
     measured one; positive: the model is late), ``daily_amplitude`` (peak-to-peak of the mean residual per
-    hour of the day) and ``daily_share`` (the part of the residual variance about the bias that the daily
-    pattern explains).
+    hour of the day), ``daily_share`` (the part of the residual variance about the bias that the daily
+    pattern explains), ``step`` and ``step_at`` (:func:`largest_step`: the largest change of the residual's mean
+    over a day, and when; an event the model does not see, e.g. the room humidified, shows there).
     """
     from .posterior import lag1
 
@@ -97,6 +98,7 @@ def residual_analysis(ev, x, times) -> pd.DataFrame:
         amp = float(hourly.max() - hourly.min()) if len(hourly) else 0.0
         var = float(np.mean(d[m] ** 2))
         share = float(np.sum(hourly.reindex(hours[m]).to_numpy() ** 2) / (var * m.sum())) if var > 0 else 0.0
+        jump, at = largest_step(times[m], ev_)
         rows.append(
             {
                 "target": name,
@@ -107,9 +109,42 @@ def residual_analysis(ev, x, times) -> pd.DataFrame:
                 "lag_min": best_s * step / 60.0 + 0.0,
                 "daily_amplitude": amp,
                 "daily_share": min(share, 1.0),
+                "step": jump,
+                "step_at": at,
             }
         )
     return pd.DataFrame(rows).set_index("target")
+
+
+#: the window on each side of a step in :func:`largest_step` (a day: it averages a daily pattern out), and the
+#: share of its samples each side must hold
+STEP_WINDOW = pd.Timedelta("1D")
+STEP_COVERAGE = 0.9
+
+
+def largest_step(times: pd.DatetimeIndex, e: np.ndarray) -> tuple[float, str]:
+    """The largest change of the mean of ``e`` over :data:`STEP_WINDOW` on either side of a sample: (mean over
+    [t, t + window) minus mean over [t - window, t), t as ISO text), at the sample where it is largest in magnitude,
+    among those whose two windows each hold at least :data:`STEP_COVERAGE` of the samples a full window holds;
+    (nan, "") when none does (a record shorter than about two days)."""
+    times = pd.DatetimeIndex(times)
+    if len(times) < 4:
+        return float("nan"), ""
+    t = np.asarray((times - times[0]).total_seconds(), dtype=float)  # [s]
+    w = STEP_WINDOW.total_seconds()
+    c = np.concatenate([[0.0], np.cumsum(e)])
+    i = np.arange(len(t))
+    lo = np.searchsorted(t, t - w, side="left")
+    hi = np.searchsorted(t, t + w, side="left")
+    n_before, n_after = i - lo, hi - i
+    full = STEP_COVERAGE * w / float(np.median(np.diff(t)))  # a part of a day does not average its pattern out
+    ok = (n_before >= full) & (n_after >= full)
+    if not ok.any():
+        return float("nan"), ""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        step = (c[hi] - c[i]) / n_after - (c[i] - c[lo]) / n_before
+    k = int(np.argmax(np.where(ok, np.abs(step), -1.0)))
+    return float(step[k]), times[k].isoformat()
 
 
 # ============================================================================ candidates
