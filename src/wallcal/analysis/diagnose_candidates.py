@@ -137,7 +137,10 @@ def largest_step(times: pd.DatetimeIndex, e: np.ndarray) -> tuple[float, str]:
     lo = np.searchsorted(t, t - w, side="left")
     hi = np.searchsorted(t, t + w, side="left")
     n_before, n_after = i - lo, hi - i
-    full = STEP_COVERAGE * w / float(np.median(np.diff(t)))  # a part of a day does not average its pattern out
+    dt = float(np.median(np.diff(t)))
+    if not dt > 0:
+        return float("nan"), ""
+    full = STEP_COVERAGE * w / dt  # a part of a day does not average its pattern out
     ok = (n_before >= full) & (n_after >= full)
     if not ok.any():
         return float("nan"), ""
