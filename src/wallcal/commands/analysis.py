@@ -352,7 +352,8 @@ def run_posterior(args) -> int:
         x0 = cal.x_opt
     ident = identifiability(study, x0=x0, targets=_targets(args.targets), add_fluxes=False)
     a = ident.main
-    print(f"Before sampling: {a.rank} of {a.n} directions identifiable from {'+'.join(a.targets)}; flat:")
+    flat = ":" if len(a.flat) else ": none"
+    print(f"Before sampling: {a.rank} of {a.n} directions identifiable from {'+'.join(a.targets)}; flat{flat}")
     for key, r in a.flat.iterrows():
         print(f"  - {key}: {r['in words']}")
     print()
