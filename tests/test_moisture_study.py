@@ -411,8 +411,11 @@ def test_passys_moisture_example_with_catalogue_properties():
 
 
 def test_a_batch_goes_to_the_active_executor(tmp_path, monkeypatch):
-    """Inside a command's executor the ham engine's batches go to it (as EnergyPlus runs do)."""
+    """Inside a command's executor the ham engine's batches go to it (as EnergyPlus runs do) when a wall runs for
+    longer than a task's dispatch is worth: the first wall runs here, the others there; walls quicker than that
+    all run here."""
     from wallcal import cluster
+    from wallcal.engines import ham
     from wallcal.simulation import prepare
     from wallcal.study import load_study
 
@@ -427,7 +430,12 @@ def test_a_batch_goes_to_the_active_executor(tmp_path, monkeypatch):
     walls = [prep.inp.wall, prep.inp.wall.replace_layer("board", sorption_scale=2.0)]
     alone = prep.run(walls)
     monkeypatch.setattr(cluster, "current_executor", lambda: Fake())
+    assert ham.DISPATCH_S > 0.05
+    here = prep.run(walls)  # a few days of a thin wall: milliseconds a wall
+    assert calls == []
+    monkeypatch.setattr(ham, "DISPATCH_S", 0.0)
     routed = prep.run(walls)
-    assert calls == [2]
-    assert np.array_equal(routed.relative_humidity["RH1"], alone.relative_humidity["RH1"])
+    assert calls == [1]
+    for out in (here, routed):
+        assert np.array_equal(out.relative_humidity["RH1"], alone.relative_humidity["RH1"])
     assert not np.allclose(alone.relative_humidity["RH1"][0], alone.relative_humidity["RH1"][1])

@@ -19,7 +19,7 @@ It maps a :class:`~wallcal.engines.base.SimulationInput` onto :func:`wallcal.moi
   ends more than 0.001 (K or RH) away from where it started).
 
 A batch loops over the walls; inside a command's executor (:mod:`wallcal.cluster`) the walls go to it as
-the EnergyPlus runs do (:func:`wallcal.eplus.map_runs`).
+the EnergyPlus runs do (:func:`wallcal.eplus.map_runs`) when a wall runs for at least :data:`DISPATCH_S`.
 """
 
 from __future__ import annotations
@@ -40,6 +40,10 @@ GRID = (1e-4, 2.0, 0.04)
 MATERIAL_CACHE = 64
 #: most passes of a periodic run
 PERIODIC_PASSES = 6
+#: inside a command's executor, a batch's walls go to it only when one of them runs for at least this long [s]:
+#: a task's dispatch costs about 10 ms and a local cluster about 3 s to start, which two-week records of
+#: 25 ms a wall never repay (docs/moisture.md, "Speed": batches inside a command)
+DISPATCH_S = 0.1
 #: a sealed surface face's relative humidity (it sets the potential at the face; beta = 0 air faces carry none)
 SEALED_RH = 0.5
 
@@ -86,12 +90,17 @@ class HamEngine(Engine):
             walls = walls.walls(inp.wall, inp.probes)
         from ..cluster import current_executor
 
+        outs = []
         if current_executor() is not None and len(walls) > 1:
-            from ..eplus import map_runs
+            # the first wall runs here; the others go to the executor only when it took longer than a task's
+            # dispatch is worth (DISPATCH_S), else they run here too
+            start = time.perf_counter()
+            outs.append(prepared.run(walls[0]))
+            if time.perf_counter() - start >= DISPATCH_S:
+                from ..eplus import map_runs
 
-            outs = map_runs(_run_task, [(inp, w) for w in walls], label="ham", inline=True)
-        else:
-            outs = [prepared.run(w) for w in walls]
+                outs += map_runs(_run_task, [(inp, w) for w in walls[1:]], label="ham", inline=True)
+        outs += [prepared.run(w) for w in walls[len(outs) :]]
         return stack_outputs(self.name, inp.probes, outs)
 
 
