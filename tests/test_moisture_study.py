@@ -439,3 +439,35 @@ def test_a_batch_goes_to_the_active_executor(tmp_path, monkeypatch):
     for out in (here, routed):
         assert np.array_equal(out.relative_humidity["RH1"], alone.relative_humidity["RH1"])
     assert not np.allclose(alone.relative_humidity["RH1"][0], alone.relative_humidity["RH1"][1])
+
+
+def test_a_batch_on_threads_equals_one_wall_after_the_other(tmp_path, monkeypatch):
+    """The ham engine runs a batch's walls on numba's threads (the kernel releases the GIL): the same outputs, bit
+    for bit, as with one thread."""
+    import numba
+
+    from wallcal.engines import ham
+    from wallcal.simulation import prepare
+    from wallcal.study import load_study
+
+    prep = prepare(load_study(_study(tmp_path)), needs=("batches",))
+    walls = [prep.inp.wall.replace_layer("board", sorption_scale=s) for s in (0.5, 1.0, 2.0, 3.0)]
+    pools = []
+
+    class Counting(ham.ThreadPoolExecutor):
+        def __init__(self, n):
+            pools.append(n)
+            super().__init__(n)
+
+    monkeypatch.setattr(ham, "ThreadPoolExecutor", Counting)
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 1)
+    one = prep.run(walls)
+    assert pools == []
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 3)
+    three = prep.run(walls)
+    assert pools == [3]
+    for p in one.relative_humidity:
+        assert np.array_equal(one.relative_humidity[p], three.relative_humidity[p])
+    for p in one.temperatures:
+        assert np.array_equal(one.temperatures[p], three.temperatures[p])
+    assert not np.allclose(one.relative_humidity["RH1"][0], one.relative_humidity["RH1"][3])

@@ -18,14 +18,17 @@ It maps a :class:`~wallcal.engines.base.SimulationInput` onto :func:`wallcal.moi
   or periodic: the run repeated from its own end state, at most :data:`PERIODIC_PASSES` times, until no cell
   ends more than 0.001 (K or RH) away from where it started).
 
-A batch loops over the walls; inside a command's executor (:mod:`wallcal.cluster`) the walls go to it as
-the EnergyPlus runs do (:func:`wallcal.eplus.map_runs`) when a wall runs for at least :data:`DISPATCH_S`.
+A batch runs its walls on numba's threads (the kernel releases the GIL); inside a command's executor
+(:mod:`wallcal.cluster`) the walls go to it as the EnergyPlus runs do (:func:`wallcal.eplus.map_runs`) when a
+wall runs for at least :data:`DISPATCH_S`.
 """
 
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -90,17 +93,18 @@ class HamEngine(Engine):
             walls = walls.walls(inp.wall, inp.probes)
         from ..cluster import current_executor
 
-        outs = []
+        outs, rest = [], list(walls)
         if current_executor() is not None and len(walls) > 1:
             # the first wall runs here; the others go to the executor only when it took longer than a task's
             # dispatch is worth (DISPATCH_S), else they run here too
             start = time.perf_counter()
-            outs.append(prepared.run(walls[0]))
+            outs.append(prepared.run(rest.pop(0)))
             if time.perf_counter() - start >= DISPATCH_S:
                 from ..eplus import map_runs
 
-                outs += map_runs(_run_task, [(inp, w) for w in walls[1:]], label="ham", inline=True)
-        outs += [prepared.run(w) for w in walls[len(outs) :]]
+                outs += map_runs(_run_task, [(inp, w) for w in rest], label="ham", inline=True)
+                rest = []
+        outs += prepared.run_many(rest)
         return stack_outputs(self.name, inp.probes, outs)
 
 
@@ -189,9 +193,20 @@ class _Prepared:
             **start,
         )
 
-    def run(self, wall: Wall) -> EngineOutput:
+    def run_many(self, walls) -> list[EngineOutput]:
+        """Each wall's run, on numba's threads (``numba.get_num_threads()``: the kernel releases the GIL); the
+        grids, and with them the material cache, are built first, in this thread."""
+        grids = [self._grid(w) for w in walls]
+        n = min(len(walls), numba.get_num_threads())
+        if n <= 1:
+            return [self.run(w, g) for w, g in zip(walls, grids, strict=True)]
+        with ThreadPoolExecutor(n) as pool:
+            return list(pool.map(self.run, walls, grids))
+
+    def run(self, wall: Wall, grid=None) -> EngineOutput:
+        """One wall's run (``grid``: its :meth:`_grid`, when built already)."""
         t = time.perf_counter()
-        grid = self._grid(wall)
+        grid = self._grid(wall) if grid is None else grid
         start = self._initial(grid)
         res = self._solve(grid, start)
         passes = 1
