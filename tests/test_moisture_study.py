@@ -460,10 +460,10 @@ def test_a_batch_on_threads_equals_one_wall_after_the_other(tmp_path, monkeypatc
             super().__init__(n)
 
     monkeypatch.setattr(ham, "ThreadPoolExecutor", Counting)
-    monkeypatch.setattr(numba, "get_num_threads", lambda: 1)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 1)
     one = prep.run(walls)
     assert pools == []
-    monkeypatch.setattr(numba, "get_num_threads", lambda: 3)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 3)
     three = prep.run(walls)
     assert pools == [3]
     for p in one.relative_humidity:

@@ -18,9 +18,9 @@ It maps a :class:`~wallcal.engines.base.SimulationInput` onto :func:`wallcal.moi
   or periodic: the run repeated from its own end state, at most :data:`PERIODIC_PASSES` times, until no cell
   ends more than 0.001 (K or RH) away from where it started).
 
-A batch runs its walls on numba's threads (the kernel releases the GIL); inside a command's executor
-(:mod:`wallcal.cluster`) the walls go to it as the EnergyPlus runs do (:func:`wallcal.eplus.map_runs`) when a
-wall runs for at least :data:`DISPATCH_S`.
+A batch runs its walls on numba's threads (``NUMBA_NUM_THREADS``; the kernel releases the GIL); inside a
+command's executor (:mod:`wallcal.cluster`) the walls go to it as the EnergyPlus runs do
+(:func:`wallcal.eplus.map_runs`) when a wall runs for at least :data:`DISPATCH_S`.
 """
 
 from __future__ import annotations
@@ -194,10 +194,10 @@ class _Prepared:
         )
 
     def run_many(self, walls) -> list[EngineOutput]:
-        """Each wall's run, on numba's threads (``numba.get_num_threads()``: the kernel releases the GIL); the
-        grids, and with them the material cache, are built first, in this thread."""
+        """Each wall's run, on numba's threads (``NUMBA_NUM_THREADS``, as the fd engine's batches; the kernel
+        releases the GIL); the grids, and with them the material cache, are built first, in this thread."""
         grids = [self._grid(w) for w in walls]
-        n = min(len(walls), numba.get_num_threads())
+        n = min(len(walls), max(1, int(numba.config.NUMBA_NUM_THREADS)))
         if n <= 1:
             return [self.run(w, g) for w, g in zip(walls, grids, strict=True)]
         with ThreadPoolExecutor(n) as pool:
