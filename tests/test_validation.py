@@ -158,7 +158,7 @@ def test_passys_as_measured_adopts_only_what_the_window_confirms(tmp_path):
 @pytest.fixture(scope="module")
 def passys_moisture_diagnosis():
     """``wallcal diagnose`` of the PASSYS heat-and-moisture study (the data as measured: no offset declared; the
-    last 4 days held out), about 30 s."""
+    last 4 days held out), about 20 s."""
     return diagnose(load_study(PASSYS_MOISTURE), progress=False)
 
 
