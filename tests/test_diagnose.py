@@ -580,3 +580,28 @@ def test_largest_step_finds_an_event_beside_a_daily_pattern():
     step, _ = largest_step(t, daily + noise)
     assert abs(step) < 0.05
     assert np.isnan(largest_step(t[:100], noise[:100])[0])
+
+
+def test_common_step_names_an_event_only_when_probes_step_together():
+    """Two or more temperature targets whose largest daily-mean steps fall within 6 h of each other, each beyond
+    half the sensor's accuracy, make one event; one probe alone, steps inside the accuracy or far apart do not."""
+    from types import SimpleNamespace
+
+    from wallcal.analysis.diagnose_candidates import common_step
+
+    sensors = {
+        "A": SimpleNamespace(quantity="temperature", accuracy=0.5),
+        "B": SimpleNamespace(quantity="temperature", accuracy=0.5),
+        "F": SimpleNamespace(quantity="heat_flux", accuracy=None),
+    }
+    study = SimpleNamespace(sensor=lambda t: sensors[t])
+
+    def res(rows):
+        return pd.DataFrame(rows, columns=["target", "step", "step_at"]).set_index("target")
+
+    together = res([("A", -1.4, "2014-01-08T09:00"), ("B", -1.1, "2014-01-08T11:00"), ("F", 0.5, "2014-01-08T09:20")])
+    text = common_step(study, together)
+    assert "A -1.40 K, B -1.10 K" in text and "2014-01-08 09:00" in text and "F" not in text.split("(")[0]
+    assert common_step(study, res([("A", -1.4, "2014-01-08T09:00"), ("B", -1.1, "2014-01-09T09:00")])) == ""
+    assert common_step(study, res([("A", -1.4, "2014-01-08T09:00"), ("B", -0.2, "2014-01-08T10:00")])) == ""
+    assert common_step(study, res([("A", -1.4, "2014-01-08T09:00"), ("B", float("nan"), "")])) == ""

@@ -147,6 +147,8 @@ def test_passys_as_measured_adopts_only_what_the_window_confirms(tmp_path):
     lam = "conductivity_temperature_coefficient[outer,mid_outer,mid_inner,inner]"
     assert lam not in d.adopted and not c.loc[lam, "plausible"]
     assert not any(n.startswith("depth[") for n in d.adopted)
+    # the interior humidity step of 2014-01-08, which a conduction model cannot follow, is named as an event
+    assert any("step together" in n and "2014-01-08" in n for n in d.notes), d.notes
     assert d.adopted == ["offset[faces]"]  # the offset found by hand, now a candidate
     assert 0.3 < d.x["offset[faces]"] < 1.0
     v = d.validation.set_index("sensor")
@@ -188,6 +190,7 @@ def test_passys_heat_and_moisture_meets_the_held_out_goal(passys_moisture_diagno
     # the heat-only candidates the ham engine cannot represent are not proposed
     assert not c["extension"].str.contains("conductivity_temperature_coefficient|contact_resistance").any()
     assert "RH" in d.summary() and "HR_4 0.006 -> 0.006 K" not in d.summary()
+    assert not any("step together" in n for n in d.notes)  # the coupled model follows the humidity step
 
 
 # ---------------------------------------------------------------------------- posterior predictive bands

@@ -72,6 +72,7 @@ from .diagnose_candidates import (  # noqa: F401
     OFFSET_SPREAD,
     PROBE_TOLERANCE,
     Extension,
+    common_step,
     plausibility,
     propose,
     residual_analysis,
@@ -763,6 +764,9 @@ def diagnose(
         + (", ".join(adopted) if adopted else "none")
     )
     notes = [f"Started from {origin}."]
+    event = common_step(study, resid)
+    if event:
+        notes.append(event)
     vtable = None
     if vprep is not None:
         vb = held_out(base)

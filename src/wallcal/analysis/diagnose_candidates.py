@@ -116,6 +116,37 @@ def residual_analysis(ev, x, times) -> pd.DataFrame:
     return pd.DataFrame(rows).set_index("target")
 
 
+#: :func:`common_step`: the largest steps of two or more temperature targets within this of each other, each beyond
+#: half the target's stated accuracy (the sd of a sensor whose accuracy is a 95 % bound), are one event
+STEP_TOGETHER = pd.Timedelta("6h")
+
+
+def common_step(study, residuals: pd.DataFrame) -> str:
+    """A sentence naming an event the model does not see, or "": the largest steps (:func:`largest_step`) of two or
+    more temperature targets fall within :data:`STEP_TOGETHER` of each other and each exceeds half the target's
+    stated accuracy. Sensors that fail on their own do not step together; a change of what the wall sees (a room
+    humidified, a heater switched on) that the boundary conditions do not carry shows in every probe at once."""
+    rows = []
+    for t, r in residuals.iterrows():
+        s = study.sensor(t)
+        if s.quantity == "temperature" and s.accuracy and r["step_at"] and abs(r["step"]) > 0.5 * s.accuracy:
+            rows.append((pd.Timestamp(r["step_at"]), t, float(r["step"])))
+    rows.sort()
+    best: list = []
+    for i in range(len(rows)):
+        group = [x for x in rows[i:] if x[0] - rows[i][0] <= STEP_TOGETHER]
+        if len(group) > len(best):
+            best = group
+    if len(best) < 2:
+        return ""
+    what = ", ".join(f"{t} {v:+.2f} K" for _, t, v in best)
+    return (
+        f"The residuals of {what} step together between {best[0][0]} and {best[-1][0]} (their daily means, the day "
+        "after against the day before): something the model does not see changed then (the room's humidity or "
+        "heating, a sensor moved); no candidate extension represents a step, so look at the data around that time."
+    )
+
+
 #: the window on each side of a step in :func:`largest_step` (a day: it averages a daily pattern out), and the
 #: share of its samples each side must hold
 STEP_WINDOW = pd.Timedelta("1D")
