@@ -430,6 +430,20 @@ class _Fit:
     ll: float
 
 
+def _period_table(table: dict, period) -> dict:
+    """The ``[period]`` table of ``period`` (a :class:`~wallcal.study.PeriodSpec`): ``table``'s keys with the
+    period's dates, so that the study file diagnose writes holds the period it diagnosed, also when the study was
+    given a window in code (``study.replace(period=...)``)."""
+    out = dict(table)
+    for key in ("warmup_start", "start", "end", "validation_start", "validation_end"):
+        value = getattr(period, key)
+        if value is None:
+            out.pop(key, None)
+        else:
+            out[key] = value
+    return out
+
+
 def _extended_raw(study, tables: list[dict]) -> dict:
     raw = copy.deepcopy(study.raw)
     cal = raw.setdefault("calibration", {})
@@ -495,7 +509,6 @@ def diagnose(
     from ..calibration.objective import Evaluator
     from ..calibration.space import parse_space, space_of
     from ..simulation import BATCH_NEEDS, prepare
-    from ..study import parse_study
     from .identifiability import sensor_sigma
 
     t0 = time.perf_counter()
@@ -755,9 +768,10 @@ def diagnose(
         cand = cand.sort_values(["n", CRITERION], kind="stable").drop(columns="n").reset_index(drop=True)
     cand["adopted"] = cand["adopted"].astype(bool)
     raw = _extended_raw(study, [by_name[n].table for n in adopted]) if adopted else copy.deepcopy(study.raw)
-    base_dir = Path(study.path).resolve().parent if study.path else None
-    ext_study = parse_study(raw, base_dir=base_dir, source=str(study.path) if study.path else None)
-    ext_study = ext_study.replace(path=study.path)
+    raw["period"] = _period_table(raw.get("period", {}), study.period)
+    # the study as given (a period, a wall or an engine set in code stays) with the adopted parameters
+    ext_space = parse_space(study, raw["calibration"]) if adopted else study.calibration
+    ext_study = study.replace(calibration=ext_space, features={**study.features, "calibration": ext_space}, raw=raw)
     seconds = time.perf_counter() - t0
     say.close(
         f"{len(fits)} candidates and combinations scored, {evaluations} simulations, {seconds:.1f} s; adopted: "
