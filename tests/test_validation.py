@@ -129,7 +129,6 @@ def test_trh_held_out(trh, tmp_path):
     assert (tmp_path / "diag" / "validation.csv").exists()
 
 
-
 def test_diagnose_keeps_a_window_given_in_code(trh, tmp_path):
     """A study given another held-out window in code (``study.replace(period=...)``): the diagnosed study and the
     study.toml diagnose writes hold that window, not the file's (they held the file's: a posterior of the
@@ -146,6 +145,8 @@ def test_diagnose_keeps_a_window_given_in_code(trh, tmp_path):
     d.write(tmp_path / "diag")
     assert load_study(tmp_path / "diag" / "study.toml").period == study.period
     assert d.validation.set_index("sensor").loc["interface", "n"] == 10 * 144  # the window's 10 days, not the file's 14
+
+
 @needs_passys
 @pytest.mark.slow
 def test_passys_as_measured_adopts_only_what_the_window_confirms(tmp_path):
