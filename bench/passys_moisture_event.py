@@ -8,8 +8,9 @@ out: the heat-only ``examples/passys/study.toml`` (its face offset set to 0) and
 ``examples/passys/study_moisture.toml``. Each adopted structure at its recalibrated optimum is then run over the
 whole record, window included. Printed: the adopted extensions and values, the held-out RMSE of T_4, T_8, T_12,
 and the mean residual (model - measured) of each probe over the day before the interior humidity (HR_0) crosses
-0.55 and over the two days after it. The figure shows HR_0 and the in-wall HR, and both models' temperature
-residuals, with the held-out window shaded. About 25 s.
+0.55 and over the two days after it; and how fast the in-wall HR follows the step, measured and as diffusion
+through the catalogue's and the calibrated board would give it (:func:`arrival`). The figure shows HR_0 and the
+in-wall HR, and both models' temperature residuals, with the held-out window shaded. About 25 s.
 """
 
 from __future__ import annotations
@@ -52,6 +53,70 @@ def whole_record(d) -> pd.DataFrame:
     return pd.DataFrame(e.T, index=ev.prepared.times, columns=list(space.targets))
 
 
+def rise(s: pd.Series, at: pd.Timestamp, hours: float) -> float:
+    """Change of ``s`` from the hour before ``at`` to the hour ending ``hours`` after it."""
+    h = pd.Timedelta("1h")
+    return s[at + (hours - 1) * h : at + hours * h].mean() - s[at - h : at].mean()
+
+
+def arrival(rh: pd.DataFrame, hr0: pd.Series, step: pd.Timestamp, board_c: float, layer, fitted: dict) -> None:
+    """How fast the in-wall HR follows the interior step, measured and as diffusion would give it.
+
+    Each probe's rise ``hours`` after the step, less its rise at the same time of day over the five days before
+    (its daily pattern), divided by the interior face's rise: the measured fraction. A step at the face of a
+    half-space under moisture diffusion of diffusivity ``D_phi`` gives ``erfc(x / (2 sqrt(D_phi t)))`` at depth
+    ``x``; ``D_phi`` fitted to the measured fractions (least squares on a log grid) is the board's apparent
+    moisture diffusivity, set beside ``delta_p p_sat / xi`` of the catalogue's board and of the calibrated one
+    (``xi = dw/dphi`` at the board's RH, ``delta_p`` from the vapour resistance factor). Then the air flow that
+    would carry the step to 8 cm in 4 h: the sorbed water holds the front back, so it moves at
+    ``q rho_v,sat / xi`` for an air flux ``q`` [m3/(m2 s)] through the board."""
+    from scipy.special import erfc
+
+    from wallcal.moisture.materials import D_AIR, R_V, saturation_pressure
+
+    depths = {"HR_4": 0.04, "HR_8": 0.08}  # m from the interior face (HR_12 follows the exterior's daily swing)
+    hours = (2.0, 4.0, 8.0)
+    day = pd.Timedelta("1D")
+    measured = []
+    print("rise of the in-wall HR after the interior step, as a fraction of HR_0's (less the daily pattern):")
+    for n, x in depths.items():
+        for hrs in hours:
+            pattern = [rise(rh[n], step - k * day, hrs) for k in range(1, 6)]
+            frac = (rise(rh[n], step, hrs) - np.mean(pattern)) / rise(hr0, step, hrs)
+            measured.append((x, hrs * 3600.0, frac, np.std(pattern) / rise(hr0, step, hrs)))
+            print(f"  {n} after {hrs:.0f} h: {frac:.2f} (daily pattern's sd {measured[-1][3]:.2f})")
+    x, t, f = (np.array([m[i] for m in measured]) for i in range(3))
+    grid = np.logspace(-10, -6, 801)
+    sse = [np.sum((erfc(x / (2.0 * np.sqrt(d * t))) - f) ** 2) for d in grid]
+    d_fit = grid[int(np.argmin(sse))]
+    phi = float(np.mean([rh[n][step - day : step].mean() for n in depths]))
+    p_sat = float(saturation_pressure(board_c))
+    material = layer.hygric_material()
+
+    def xi(scale: float) -> float:
+        return scale * float(np.diff(material.water_content_from_rh([phi - 0.01, phi + 0.01]))[0]) / 0.02
+
+    def d_phi(mu: float, scale: float) -> float:
+        return D_AIR / (R_V * (board_c + 273.15)) / mu * p_sat / xi(scale)
+
+    cat = d_phi(layer.vapour_resistance_factor, 1.0)
+    fit = d_phi(fitted["vapour_resistance_factor[wood_fibre]"], fitted["sorption_scale[wood_fibre]"])
+    print(
+        f"apparent moisture diffusivity from the rises: {d_fit:.2g} m2/s (erfc fractions "
+        + ", ".join(f"{erfc(a / (2 * np.sqrt(d_fit * b))):.2f}" for a, b in zip(x, t, strict=True))
+        + f"); the catalogue's board (mu {layer.vapour_resistance_factor:g}, xi {xi(1.0):.1f} kg/m3 at RH {phi:.2f}, "
+        f"{board_c:.1f} degC): {cat:.2g} m2/s, {d_fit / cat:.0f} x slower; the calibrated board (mu "
+        f"{fitted['vapour_resistance_factor[wood_fibre]']:.2f}, {fitted['sorption_scale[wood_fibre]']:.2f} x the "
+        f"storage): {fit:.2g} m2/s"
+    )
+    rho_sat = p_sat / (R_V * (board_c + 273.15))
+    q = 0.08 * xi(1.0) / (rho_sat * 4 * 3600.0)
+    print(
+        f"air flow that would carry the step to 8 cm in 4 h through the catalogue's board: {q:.1g} m3/(m2 s) "
+        f"({q * 3600:.0f} m3/(m2 h))"
+    )
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--figure", type=Path, help="write the figure here (PNG)")
@@ -69,10 +134,11 @@ def main(argv=None) -> int:
         f"interior RH (HR_0) crosses 0.55 at {step}: mean {hr0[step - day : step].mean():.2f} over the day before, "
         f"{hr0[step : step + two].mean():.2f} over the two days after"
     )
-    rows, resid = {}, {}
+    rows, resid, fitted = {}, {}, {}
     for label, study in (("heat only (fd-cn)", study_of("passys0")), ("heat and moisture (ham)", humid)):
         t0 = time.perf_counter()
         d = diagnose(study, progress=False)
+        fitted = d.x
         v = d.validation.set_index("sensor")["rmse"]
         e = whole_record(d)
         resid[label] = e
@@ -84,6 +150,8 @@ def main(argv=None) -> int:
         }
         vals = ", ".join(f"{n} = {d.x[n]:.4g}" for n in d.adopted) or "nothing"
         print(f"{label}: adopted {vals} ({time.perf_counter() - t0:.0f} s)")
+    board = float(data.measured.loc[step - day : step, list(PROBES)].mean().mean())  # degC
+    arrival(rh, hr0, step, board, humid.wall.layers[0], fitted)
     t = pd.DataFrame(rows).T
     print("held-out RMSE [K] and the step in the mean residual (model - measured) [K], the two days after the")
     print("interior humidity step against the day before:")
