@@ -294,14 +294,26 @@ def sample(study, temperings, steps, walkers, missing=(), label="", start=None):
                     ]
                 ),
                 "structure": r.structure["statement"],
-                "predictive": ""
-                if r.predictive is None
-                else "; ".join(
-                    f"{q.sensor} {q.coverage_95:.3f} ({q.band_width_95:.3g})" for q in r.predictive.table.itertuples()
-                ),
+                "predictive": "" if r.predictive is None else bands(study, prep, r),
             }
         )
     return rows
+
+
+def bands(study, prep, r) -> str:
+    """The held-out window's coverage_95 (band_width_95) per sensor: the posterior's band, then the same chain's
+    band from its in-sample errors alone (``out_of_sample=False``)."""
+    from wallcal.analysis.posterior_predictive import predictive
+    from wallcal.calibration.objective import Evaluator
+    from wallcal.calibration.space import space_of
+
+    plain = predictive(study, r.space, r.samples, Evaluator(prep, space_of(study)), out_of_sample=False)
+    p = plain.table.set_index("sensor")
+    return "; ".join(
+        f"{q.sensor} {q.coverage_95:.3f} ({q.band_width_95:.3g}), in-sample {p.loc[q.sensor, 'coverage_95']:.3f} "
+        f"({p.loc[q.sensor, 'band_width_95']:.3g})"
+        for q in r.predictive.table.itertuples()
+    )
 
 
 def effective_samples(r) -> float:

@@ -214,9 +214,9 @@ def test_passys_heat_and_moisture_meets_the_held_out_goal(passys_moisture_diagno
 # ---------------------------------------------------------------------------- posterior predictive bands
 @pytest.mark.slow
 def test_posterior_predictive_trh(trh, tmp_path):
-    """The posterior predicts the held-out window from its draws plus their fitted-period errors: validation.csv
-    with the band's coverage and width, predictive.csv per timestamp and sensor; --predict any other period (modest
-    chain settings: the bands, not the chain, are under test)."""
+    """The posterior predicts the held-out window from its draws plus their out-of-sample errors over the fitted
+    period: validation.csv with the band's coverage and width, predictive.csv per timestamp and sensor; --predict
+    any other period (modest chain settings: the bands, not the chain, are under test)."""
     from wallcal.analysis.posterior import posterior
     from wallcal.cli import main
 
@@ -230,10 +230,11 @@ def test_posterior_predictive_trh(trh, tmp_path):
     assert list(v.columns) == ["rmse", "mbe", "n", "coverage_95", "band_width_95"]
     row = v.loc["interface"]
     assert row["n"] == 2016 and row["rmse"] <= 0.25
-    # measured figures (docs/identifiability.md, default chain): coverage 0.999 with a 0.83 K band (0.90 K with the
-    # Gaussian AR(1) band before) - the fitted period's errors (RMSE 0.24 K) are larger than the window's (0.15 K),
-    # so the upper limit of 99 % is not met and not asserted
-    assert 0.85 <= row["coverage_95"] and 0.5 < row["band_width_95"] < 0.87, row
+    # measured figures (docs/identifiability.md, default chain): coverage 1.000 with a 1.17 K band (0.999, 0.83 K
+    # from the in-sample errors alone) - this third is predicted better than the rest of the record (RMSE 0.15 K
+    # against 0.21-0.35 K for the other thirds held out, bench/coverage_folds.py), so the upper limit of 99 % is not
+    # met here and not asserted
+    assert 0.85 <= row["coverage_95"] and 0.9 < row["band_width_95"] < 1.4, row
     b = pd.read_csv(tmp_path / "predictive.csv")
     assert list(b.columns) == ["timestamp", "sensor", "measured", "median", "p2.5", "p97.5"]
     assert len(b) == 2016 and (b["p2.5"] <= b["median"]).all() and (b["median"] <= b["p97.5"]).all()
@@ -248,9 +249,9 @@ def test_posterior_predictive_trh(trh, tmp_path):
 @needs_passys
 @pytest.mark.slow
 def test_posterior_predictive_passys_heat_and_moisture(passys_moisture_diagnosis):
-    """The coupled model's bands on the held-out days (modest chain; default chain in docs/identifiability.md: T_4
-    0.987, T_8 0.881, T_12 0.819 with bands of 0.40-0.65 K, five times narrower than the heat-only structure's):
-    T_4 and T_8 inside 85-99 %; T_12 and the HR sensors below, and the self-check rejects the structure (the vapour
+    """The coupled model's bands on the held-out days (modest chain: T_4 0.997, T_8 0.959, T_12 0.848 with bands of
+    0.69-0.76 K; default chain in docs/identifiability.md), four times narrower than the heat-only structure's: every
+    temperature sensor covered at 80 % or more, T_8 inside 85-99 %; the self-check rejects the structure (the vapour
     resistance factor held at its floor of 1), so the report does not present these intervals as trustworthy."""
     from wallcal.analysis.posterior import posterior
 
@@ -260,9 +261,9 @@ def test_posterior_predictive_passys_heat_and_moisture(passys_moisture_diagnosis
         d.study, x_start=x0, walkers=16, steps=40, progress=False, nonunique_candidates=16, predictive_draws=60
     )
     v = p.predictive.table.set_index("sensor")
-    for t in ("T_4", "T_8"):
-        assert 0.85 <= v.loc[t, "coverage_95"] <= 0.99 and v.loc[t, "band_width_95"] < 0.6, v
-    assert v.loc["T_12", "band_width_95"] < 1.0 and (v.loc[["T_4", "T_8", "T_12"], "rmse"] < 0.3).all(), v
+    temps = ["T_4", "T_8", "T_12"]
+    assert (v.loc[temps, "coverage_95"] >= 0.8).all() and (v.loc[temps, "band_width_95"] < 0.9).all(), v
+    assert 0.85 <= v.loc["T_8", "coverage_95"] <= 0.99 and (v.loc[temps, "rmse"] < 0.3).all(), v
     assert p.structure["rejected"] and "vapour_resistance_factor[wood_fibre]" in p.structure["statement"]
 
 
@@ -270,10 +271,10 @@ def test_posterior_predictive_passys_heat_and_moisture(passys_moisture_diagnosis
 @pytest.mark.slow
 def test_posterior_predictive_passys_as_measured():
     """PASSYS with the face offset at 0, the structure diagnose adopts (offset[faces]): the 95 % bands cover at least
-    85 % of the held-out points of every temperature sensor. They are too wide (default chain: 1.00, 1.00, 0.96 with
-    bands of 2.1-2.7 K, 2.5-3.1 K with the Gaussian AR(1) band before; docs/identifiability.md): the fitted period's
-    errors (RMSE 0.63-0.77 K) exceed the window's (0.41-0.56 K), so the upper limit of 99 % is not met and not
-    asserted."""
+    85 % of the held-out points of every temperature sensor. They are too wide on this window (default chain: 1.00
+    each with bands of 2.9-3.6 K; docs/identifiability.md), which the model predicts better than the rest of the
+    record (bench/coverage_folds.py: 0.69-0.77 and 0.89-1.00 on the first two thirds held out), so the upper limit
+    of 99 % is not met here and not asserted."""
     from wallcal.analysis.posterior import posterior
 
     s = _passys_as_measured()
@@ -284,7 +285,7 @@ def test_posterior_predictive_passys_as_measured():
     )
     v = p.predictive.table.set_index("sensor")
     for t in ("T_4", "T_8", "T_12"):
-        assert 0.85 <= v.loc[t, "coverage_95"] and v.loc[t, "band_width_95"] < 3.0, v
+        assert 0.85 <= v.loc[t, "coverage_95"] and v.loc[t, "band_width_95"] < 4.0, v
         assert v.loc[t, "rmse"] < 0.7
 
 

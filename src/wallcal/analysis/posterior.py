@@ -274,8 +274,8 @@ def posterior(
     max_steps : int, optional
         Longest default chain (when ``steps`` is not given) [steps] (default :data:`DEFAULT_MAX_STEPS`).
     predict : (start, end), optional
-        Predict this period of the study's data from the draws plus their fitted-period errors
-        (:func:`~wallcal.analysis.posterior_predictive.predictive`; ``predictive.csv``); default the study's
+        Predict this period of the study's data from the draws plus their out-of-sample errors over the fitted
+        period (:func:`~wallcal.analysis.posterior_predictive.predictive`; ``predictive.csv``); default the study's
         validation window, if any (then also ``validation.csv`` with ``coverage_95`` and ``band_width_95``).
     predictive_draws : int, optional
         Posterior draws simulated for the predictive band (default

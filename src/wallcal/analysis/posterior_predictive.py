@@ -1,23 +1,26 @@
 """Posterior predictive bands (:mod:`wallcal.analysis.posterior`): any period of the study's data predicted from
-the posterior's draws plus the errors they leave over the fitted period; by default the study's held-out
-validation window.
+the posterior's draws plus the errors they make where the fit did not see the data; by default the study's
+held-out validation window.
 
 For each of ``draws`` posterior samples the window is simulated (one engine batch, simulated from the warm-up start
 through the window's end), and the measured value at each of its timestamps is predicted as
 
     measured = simulated - offsets - e
 
-with ``offsets`` the draw's calibrated sensor offsets and ``e`` one of the errors (simulated - measured) that this
-same draw leaves over the fitted period, picked at random (:func:`band`). The band is thus the draws' spread (the
-parameters' uncertainty) widened by the empirical distribution of each draw's fitted-period errors, level
-included: model error, sensor bias and sensor noise, as the fitted period shows them, with no assumption of their
-shape. A draw whose simulated level is off carries its own level error into its prediction, so the parameters'
-spread in level is not counted twice. The AR(1) error model of the likelihood does not enter: it describes how an
-error follows the previous one, which matters to the likelihood, not the marginal distribution of an error at a
-timestamp, which is what a band is (docs/identifiability.md, "Posterior predictive bands").
+with ``offsets`` the draw's calibrated sensor offsets and ``e`` one of this same draw's errors (simulated -
+measured) over the fitted period, picked at random (:func:`band`), **as they would be out of sample**: each
+fitted timestamp's error plus how much worse the model predicts it when the fit does not see it
+(:func:`out_of_fold`: the fitted period cut into blocks as long as the window, each refitted without in turn).
+The band is thus the draws' spread (the parameters' uncertainty) widened by the empirical distribution of each
+draw's out-of-sample errors, level included: model error, sensor bias and sensor noise, as the fitted period
+shows them, with no assumption of their shape. A draw whose simulated level is off carries its own level error
+into its prediction, so the parameters' spread in level is not counted twice. The AR(1) error model of the
+likelihood does not enter: it describes how an error follows the previous one, which matters to the likelihood,
+not the marginal distribution of an error at a timestamp, which is what a band is (docs/identifiability.md,
+"Posterior predictive bands").
 
 The band at each timestamp is the 2.5 and 97.5 % quantiles of these predictions (``median`` of predictive.csv
-their median: the model's, shifted by the median fitted error); ``coverage_95`` the share of measured points inside
+their median: the model's, shifted by the median error); ``coverage_95`` the share of measured points inside
 it, ``band_width_95`` its mean width; ``rmse`` and ``mbe`` are those of the model, the draws' median simulation.
 """
 
@@ -36,6 +39,8 @@ ERROR_DRAWS = 5
 PREDICTIVE_COLUMNS = ("timestamp", "sensor", "measured", "median", "p2.5", "p97.5")
 #: timestamps per block of :func:`band` (bounds its memory on a long period)
 _BLOCK = 4096
+#: most blocks of the fitted period refitted without them (:func:`out_of_fold`)
+MAX_FOLDS = 6
 
 
 @dataclasses.dataclass
@@ -98,6 +103,73 @@ def band(
     return out[0], out[1], out[2]
 
 
+def fold_blocks(times: pd.DatetimeIndex, valid: np.ndarray, length: pd.Timedelta) -> list[np.ndarray]:
+    """The fitted period cut into contiguous blocks of about ``length`` each (at least 2, at most
+    :data:`MAX_FOLDS`, of equal duration from its first to its last valid timestamp): one boolean array over
+    ``times`` per block."""
+    idx = np.flatnonzero(valid)
+    if len(idx) < 2:
+        return []
+    first, last = times[idx[0]], times[idx[-1]]
+    span = last - first
+    k = int(np.clip(round(span / length) if length > pd.Timedelta(0) else 2, 2, MAX_FOLDS))
+    edges = [first + span * i / k for i in range(k + 1)]
+    blocks = []
+    for i in range(k):
+        inside = (times >= edges[i]) & ((times < edges[i + 1]) if i < k - 1 else (times <= last))
+        blocks.append(np.asarray(inside) & valid)
+    return [b for b in blocks if b.any()]
+
+
+def out_of_fold(ev, x_ref: np.ndarray, length: pd.Timedelta) -> np.ndarray:
+    """How much worse the fitted period is predicted where the fit did not see it: per block of about
+    ``length`` (:func:`fold_blocks`), the change of the model's errors when that block is left out of the fit.
+
+    The structure is refitted by least squares (the errors of each target over its RMS at ``x_ref``,
+    :func:`~wallcal.analysis.diagnose_scoring.refine` from ``x_ref``) on the whole fitted period, then on the
+    period without each block in turn; inside the block the difference of the two fits' errors is returned.
+
+    Parameters
+    ----------
+    ev : Evaluator
+        Of the fitted period.
+    x_ref : ndarray, shape (n,)
+        A point of the posterior [SI] (where the refits start).
+    length : Timedelta
+        The predicted window's length.
+
+    Returns
+    -------
+    ndarray, shape (n_targets, n_times)
+        Out-of-fold minus in-sample error [target unit]; 0 at invalid samples.
+    """
+    from .diagnose_scoring import refine
+
+    space = ev.space
+    mask = ev.mask
+    delta = np.zeros(mask.shape)
+    blocks = fold_blocks(ev.prepared.times, mask.any(axis=0), length)
+    if not blocks:
+        return delta
+    e_ref = ev.errors(np.asarray(x_ref, dtype=float)[None])[0]
+    scale = np.sqrt(np.einsum("kt,kt->k", e_ref, e_ref) / np.maximum(ev.n_valid, 1))
+    scale = np.where(scale > 0, scale, 1.0)
+
+    def fit(keep):
+        def residuals(U):
+            e = ev.errors(space.from_unit(U))
+            return (np.where(keep[None], e, 0.0) / scale[None, :, None]).reshape(len(U), -1)
+
+        u, _ = refine(residuals, space.to_unit(np.asarray(x_ref, dtype=float)))
+        return ev.errors(space.from_unit(u[None]))[0]
+
+    e_full = fit(mask)
+    for block in blocks:
+        e_out = fit(mask & ~block[None])
+        delta[:, block] = (e_out - e_full)[:, block]
+    return np.where(mask, delta, 0.0)
+
+
 def window_study(study, start, end):
     """The study with ``[start, end]`` as its validation window (warm-up from the study's, or from ``start`` when
     that is earlier)."""
@@ -117,6 +189,7 @@ def predictive(
     window=None,
     draws: int = PREDICTIVE_DRAWS,
     seed: int = 1,
+    out_of_sample: bool = True,
 ) -> Predictive | None:
     """The posterior predictive band over ``window`` ((start, end); default the study's validation window).
 
@@ -131,6 +204,8 @@ def predictive(
     window : (start, end), optional
     draws : int
     seed : int
+    out_of_sample : bool
+        Widen each draw's fitted-period errors by :func:`out_of_fold` (the default), or take them as they are.
 
     Returns
     -------
@@ -151,7 +226,11 @@ def predictive(
     X = X[rng.choice(len(X), size=min(draws, len(X)), replace=False)]
     targets = list(space.targets)
     predicted = val.simulate(X) - space.offsets(X)[:, :, None]  # (c, k, t): the measured signal has no offsets
-    lo, med, hi = band(predicted, ev.errors(X), ev.mask, rng)
+    errors = ev.errors(X)
+    if out_of_sample:  # each draw's fitted errors as they would be where the fit did not see them
+        length = pd.Timestamp(window[1]) - pd.Timestamp(window[0])
+        errors = errors + out_of_fold(ev, np.median(X, axis=0), length)[None]
+    lo, med, hi = band(predicted, errors, ev.mask, rng)
     y = np.where(val.ev.mask, val.ev.y, np.nan)
     times = val.times
     nt = len(times)

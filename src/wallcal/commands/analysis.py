@@ -163,8 +163,9 @@ def register(sub) -> None:
         "--predict",
         nargs=2,
         metavar=("START", "END"),
-        help="predict this period of the study's data from the draws plus their fitted-period errors (predictive.csv, "
-        "predictive_summary.csv); default the study's validation window (predictive.csv, validation.csv)",
+        help="predict this period of the study's data from the draws plus their out-of-sample errors over the "
+        "fitted period (predictive.csv, predictive_summary.csv); default the study's validation window "
+        "(predictive.csv, validation.csv)",
     )
     p.add_argument("--out", metavar="DIR", help="default: posterior/ next to the study")
     p.add_argument("--quiet", action="store_true")
