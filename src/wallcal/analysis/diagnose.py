@@ -769,9 +769,15 @@ def diagnose(
     cand["adopted"] = cand["adopted"].astype(bool)
     raw = _extended_raw(study, [by_name[n].table for n in adopted]) if adopted else copy.deepcopy(study.raw)
     raw["period"] = _period_table(raw.get("period", {}), study.period)
-    # the study as given (a period, a wall or an engine set in code stays) with the adopted parameters
+    # the study as given (a period, a wall or an engine set in code stays) with the adopted parameters; extended,
+    # it is no longer the file the hash was taken of
     ext_space = parse_space(study, raw["calibration"]) if adopted else study.calibration
-    ext_study = study.replace(calibration=ext_space, features={**study.features, "calibration": ext_space}, raw=raw)
+    ext_study = study.replace(
+        calibration=ext_space,
+        features={**study.features, "calibration": ext_space},
+        raw=raw,
+        sha256=study.sha256 if not adopted else "",
+    )
     seconds = time.perf_counter() - t0
     say.close(
         f"{len(fits)} candidates and combinations scored, {evaluations} simulations, {seconds:.1f} s; adopted: "
